@@ -1,0 +1,420 @@
+"""True motion along a known track: speed profiles, attitude and the full true state.
+
+The vehicle's arc length s(t) along the track comes from a speed profile; the track
+gives the geometry (position, unit tangent, heading, grade, cant and their derivatives
+with respect to s); this module combines the two into a mutually consistent true state:
+
+.. math::
+
+    v^n = \\dot s\\, t^n(s), \\qquad
+    \\dot v^n = \\ddot s\\, t^n + \\dot s^2\\, \\frac{dt^n}{ds}, \\\\
+    f^n = \\dot v^n + (2\\omega_{ie}^n + \\omega_{en}^n) \\times v^n - g^n, \\qquad
+    f^b = C_b^{n\\,T} f^n, \\\\
+    \\omega_{ib}^b = \\omega_{nb}^b + C_b^{n\\,T}(\\omega_{ie}^n + \\omega_{en}^n),
+
+where ``dv^n/dt`` is the rate of change of the ENU components (the form in which the
+local-level navigation equation, 003 eq. (1), is written), ``omega_nb_b`` follows from the
+heading, pitch and roll rates (:func:`navsim.rotations.body_rate_from_hpr_rates`) and
+``g^n`` is the Earth model's plumb-line gravity. Everything is analytic in t, so the IMU
+can integrate it to near machine precision.
+
+Attitude: the body y axis points along the track tangent (heading, grade); roll is the
+track's cant; configurable harmonic body oscillations add to heading, pitch and roll.
+
+Speed profiles (all vectorised over t, all with continuous acceleration):
+
+* :class:`ConstantSpeed`;
+* :class:`Timetable`: stop-to-stop legs (accelerate, cruise, brake, dwell) with
+  jerk-limited acceleration built from raised-cosine ramps;
+* :class:`ExternalMotion`: samples (t, s, speed, acceleration) given step by step (the
+  Gymnasium env and the FMU feed it), joined by quintic Hermite interpolation, which
+  matches position, speed and acceleration at every sample.
+
+References
+----------
+.. [1] Sokolov S.V., Vdovichenko S.S. (2012), seed 003, eq. (1).
+.. [2] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+       Systems, 2nd ed., 2013, eqs. (5.54) (local-navigation-frame velocity equation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol, Sequence
+
+import numpy as np
+
+from .errors import ConfigError
+from .rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
+
+__all__ = [
+    "SpeedProfile",
+    "ConstantSpeed",
+    "Timetable",
+    "Station",
+    "ExternalMotion",
+    "Oscillation",
+    "TrueState",
+    "true_state",
+    "body_kinematics",
+]
+
+
+# ============================================================================ profiles
+class SpeedProfile(Protocol):
+    """Along-track motion: arc length, speed and acceleration as functions of time."""
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return s (m), ds/dt (m/s) and d2s/dt2 (m/s^2) at times t (s)."""
+        ...
+
+    @property
+    def end_time(self) -> float:
+        """Last time (s) at which the profile is defined (inf if unbounded)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class ConstantSpeed:
+    """s(t) = s0 + speed * t."""
+
+    speed: float
+    s0: float = 0.0
+
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float)
+        return self.s0 + self.speed * t, np.full_like(t, self.speed), np.zeros_like(t)
+
+    @property
+    def end_time(self) -> float:
+        return math.inf
+
+
+# Raised-cosine acceleration ramp R(x) (0 -> 1 over x in [0, 1]) and its integrals; the
+# jerk R'(x) = (pi/2) sin(pi x) vanishes at both ends, so acceleration is C^1.
+def _ramp(x):
+    xc = np.clip(x, 0.0, 1.0)
+    return 0.5 * (1.0 - np.cos(np.pi * xc))
+
+
+def _ramp_int1(x):  # integral of R from 0 to x
+    xc = np.clip(x, 0.0, 1.0)
+    inside = 0.5 * xc - np.sin(np.pi * xc) / (2.0 * np.pi)
+    return inside + np.maximum(x - 1.0, 0.0)
+
+
+def _ramp_int2(x):  # integral of _ramp_int1 from 0 to x
+    xc = np.clip(x, 0.0, 1.0)
+    inside = 0.25 * xc**2 + (np.cos(np.pi * xc) - 1.0) / (2.0 * np.pi**2)
+    beyond = np.maximum(x - 1.0, 0.0)
+    # for x > 1: R2(1) + (x^2 - 1)/2 - (x - 1)/2 = R2(1) + beyond * (beyond + 1) / 2
+    return inside + 0.5 * beyond * (beyond + 1.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Station:
+    """A stop of a timetable: arc length of the platform mark and dwell time."""
+
+    s: float
+    dwell: float = 30.0
+
+
+@dataclass(frozen=True)
+class Timetable:
+    """Stop-to-stop running between stations with jerk-limited acceleration.
+
+    The vehicle starts at rest at ``stations[0].s`` at t = 0 (after an initial dwell of
+    ``stations[0].dwell``), runs to each next station at up to ``cruise_speed``, brakes
+    to stop exactly at the platform mark, dwells, and so on; after the last station it
+    stays at rest. Acceleration changes follow raised-cosine ramps of duration
+    ``jerk_time`` (peak jerk ``pi/2 * a / jerk_time``).
+
+    The profile is a sum of ramp events, ``a(t) = sum_k c_k R((t - t_k)/T_j)``, so s, ds/dt
+    and d2s/dt2 are closed forms (:func:`_ramp_int2`, :func:`_ramp_int1`, :func:`_ramp`).
+    """
+
+    stations: tuple[Station, ...]
+    cruise_speed: float = 25.0
+    max_accel: float = 0.8
+    max_decel: float = 0.8
+    jerk_time: float = 2.0
+    _event_times: np.ndarray = field(init=False, repr=False)
+    _event_steps: np.ndarray = field(init=False, repr=False)
+    _end_time: float = field(init=False, repr=False)
+
+    def __post_init__(self):
+        stations = tuple(self.stations)
+        if len(stations) < 2:
+            raise ConfigError("motion.stations", "at least two stations", len(stations))
+        for name in ("cruise_speed", "max_accel", "max_decel", "jerk_time"):
+            value = getattr(self, name)
+            if not (value > 0 and math.isfinite(value)):
+                raise ConfigError(f"motion.{name}", "a positive number", value)
+        for i, (a, b) in enumerate(zip(stations, stations[1:])):
+            if not b.s > a.s:
+                raise ConfigError(f"motion.stations[{i + 1}].s", f"> stations[{i}].s = {a.s}", b.s)
+        for i, st in enumerate(stations):
+            if st.dwell < 0:
+                raise ConfigError(f"motion.stations[{i}].dwell", "a dwell >= 0 s", st.dwell)
+        times, steps = [], []
+        t = stations[0].dwell
+        for a, b in zip(stations, stations[1:]):
+            leg_times, leg_steps, duration = self._plan_leg(b.s - a.s)
+            times += [t + x for x in leg_times]
+            steps += leg_steps
+            t += duration + b.dwell
+        object.__setattr__(self, "stations", stations)
+        object.__setattr__(self, "_event_times", np.array(times))
+        object.__setattr__(self, "_event_steps", np.array(steps))
+        object.__setattr__(self, "_end_time", t)
+
+    # -- planning ------------------------------------------------------------------
+    def _change(self, dv: float, accel: float) -> tuple[float, float, float]:
+        """Peak acceleration, plateau and total duration of a speed change dv > 0."""
+        tj = self.jerk_time
+        if dv >= accel * tj:
+            return accel, dv / accel - tj, dv / accel + tj
+        return dv / tj, 0.0, 2.0 * tj  # too small for a plateau: reduced peak
+
+    def _stop_to_stop_distance(self, v: float) -> float:
+        # by symmetry of the ramp, distance of a change 0 -> v is v * T / 2
+        return 0.5 * v * (self._change(v, self.max_accel)[2] + self._change(v, self.max_decel)[2])
+
+    def _plan_leg(self, length: float):
+        v = self.cruise_speed
+        if self._stop_to_stop_distance(v) > length:
+            lo, hi = 0.0, v
+            for _ in range(200):  # bisection: distance is increasing in v
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if self._stop_to_stop_distance(mid) <= length else (lo, mid)
+            v = lo
+        a_acc, plateau_acc, t_acc = self._change(v, self.max_accel)
+        a_dec, plateau_dec, t_dec = self._change(v, self.max_decel)
+        cruise = (length - self._stop_to_stop_distance(v)) / v
+        tj = self.jerk_time
+        t_brake = t_acc + cruise
+        times = [0.0, tj + plateau_acc, t_brake, t_brake + tj + plateau_dec]
+        steps = [a_acc, -a_acc, -a_dec, a_dec]
+        return times, steps, t_acc + cruise + t_dec
+
+    # -- evaluation ------------------------------------------------------------------
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float)
+        tj = self.jerk_time
+        x = (t[..., None] - self._event_times) / tj
+        c = self._event_steps
+        accel = np.sum(c * _ramp(x), axis=-1)
+        speed = tj * np.sum(c * _ramp_int1(x), axis=-1)
+        s = self.stations[0].s + tj * tj * np.sum(c * _ramp_int2(x), axis=-1)
+        return s, speed, accel
+
+    @property
+    def end_time(self) -> float:
+        """Time of arrival at the last station plus its dwell, s."""
+        return self._end_time
+
+
+class ExternalMotion:
+    """Along-track motion supplied sample by sample from outside (env, FMU, an FMU).
+
+    Samples ``(t, s, speed, accel)`` must come at increasing times; between two samples
+    the motion is the quintic Hermite polynomial that matches position, speed and
+    acceleration at both ends, so the specific force is continuous and the IMU's
+    integrals are exact for it. ``evaluate`` at a time beyond the last sample raises.
+
+    This is the one mutable profile: the :class:`~navsim.simulator.Simulator` owns it.
+    """
+
+    def __init__(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0):
+        self._t = [float(t0)]
+        self._x = [(float(s0), float(speed0), float(accel0))]
+
+    def push(self, t: float, s: float, speed: float, accel: float) -> None:
+        """Append the motion state at time t (> the last sample's time)."""
+        values = (float(s), float(speed), float(accel))
+        if not all(math.isfinite(v) for v in values):
+            raise ConfigError("motion.external", "finite arc length, speed and acceleration", values)
+        if not t > self._t[-1]:
+            raise ConfigError("motion.external.t", f"a time after {self._t[-1]}", t)
+        self._t.append(float(t))
+        self._x.append(values)
+
+    def reset(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0) -> None:
+        self.__init__(t0, s0, speed0, accel0)
+
+    @property
+    def end_time(self) -> float:
+        return self._t[-1]
+
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float)
+        knots = np.asarray(self._t)
+        if t.size and (t.max() > knots[-1] + 1e-12 or t.min() < knots[0] - 1e-12):
+            raise ConfigError(
+                "motion.external", f"samples covering [{t.min()}, {t.max()}] s",
+                f"samples for [{knots[0]}, {knots[-1]}] s",
+            )
+        values = np.asarray(self._x)
+        if len(knots) == 1:
+            z = np.zeros_like(t)
+            return values[0, 0] + z, values[0, 1] + z, values[0, 2] + z
+        i = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
+        dt = knots[i + 1] - knots[i]
+        u = (t - knots[i]) / dt
+        p0, v0, a0 = values[i, 0], values[i, 1] * dt, values[i, 2] * dt * dt
+        p1, v1, a1 = values[i + 1, 0], values[i + 1, 1] * dt, values[i + 1, 2] * dt * dt
+        # quintic Hermite basis on [0, 1]
+        u2, u3 = u * u, u * u * u
+        h = [
+            1 - 10 * u3 + 15 * u3 * u - 6 * u3 * u2,
+            u - 6 * u3 + 8 * u3 * u - 3 * u3 * u2,
+            0.5 * u2 - 1.5 * u3 + 1.5 * u3 * u - 0.5 * u3 * u2,
+            10 * u3 - 15 * u3 * u + 6 * u3 * u2,
+            -4 * u3 + 7 * u3 * u - 3 * u3 * u2,
+            0.5 * u3 - u3 * u + 0.5 * u3 * u2,
+        ]
+        dh = [
+            -30 * u2 + 60 * u3 - 30 * u3 * u,
+            1 - 18 * u2 + 32 * u3 - 15 * u3 * u,
+            u - 4.5 * u2 + 6 * u3 - 2.5 * u3 * u,
+            30 * u2 - 60 * u3 + 30 * u3 * u,
+            -12 * u2 + 28 * u3 - 15 * u3 * u,
+            1.5 * u2 - 4 * u3 + 2.5 * u3 * u,
+        ]
+        ddh = [
+            -60 * u + 180 * u2 - 120 * u3,
+            -36 * u + 96 * u2 - 60 * u3,
+            1 - 9 * u + 18 * u2 - 10 * u3,
+            60 * u - 180 * u2 + 120 * u3,
+            -24 * u + 84 * u2 - 60 * u3,
+            3 * u - 12 * u2 + 10 * u3,
+        ]
+        coef = (p0, v0, a0, p1, v1, a1)
+        s = sum(c * b for c, b in zip(coef, h))
+        speed = sum(c * b for c, b in zip(coef, dh)) / dt
+        accel = sum(c * b for c, b in zip(coef, ddh)) / (dt * dt)
+        return s, speed, accel
+
+
+# ============================================================================ attitude
+_ANGLES = ("heading", "pitch", "roll")
+
+
+@dataclass(frozen=True, slots=True)
+class Oscillation:
+    """A harmonic body oscillation added to one attitude angle.
+
+    ``angle(t) += amplitude * sin(2 pi frequency t + phase)``; the corresponding rate
+    amplitude is ``amplitude * 2 pi frequency`` (seed 001's test: rate amplitudes
+    0.174 rad/s at 0.8 Hz and 1 Hz, i.e. angle amplitudes 0.0346 and 0.0277 rad).
+    """
+
+    angle: str
+    amplitude: float  # rad
+    frequency: float  # Hz
+    phase: float = 0.0  # rad
+
+    def __post_init__(self):
+        if self.angle not in _ANGLES:
+            raise ConfigError("motion.oscillations.angle", f"one of {_ANGLES}", self.angle)
+        if not (self.frequency > 0 and math.isfinite(self.frequency)):
+            raise ConfigError("motion.oscillations.frequency_hz", "a positive frequency", self.frequency)
+        if not math.isfinite(self.amplitude):
+            raise ConfigError("motion.oscillations.amplitude", "a finite angle", self.amplitude)
+
+
+def _oscillation_offsets(oscillations: Sequence[Oscillation], t: np.ndarray):
+    """Angle offsets and their rates, each a dict angle -> array."""
+    angles = {name: np.zeros_like(t) for name in _ANGLES}
+    rates = {name: np.zeros_like(t) for name in _ANGLES}
+    for osc in oscillations:
+        w = 2.0 * np.pi * osc.frequency
+        arg = w * t + osc.phase
+        angles[osc.angle] = angles[osc.angle] + osc.amplitude * np.sin(arg)
+        rates[osc.angle] = rates[osc.angle] + osc.amplitude * w * np.cos(arg)
+    return angles, rates
+
+
+# ============================================================================ true state
+@dataclass(frozen=True, slots=True)
+class TrueState:
+    """The true state at an array of times (every field has leading shape (n,)).
+
+    Attributes
+    ----------
+    t : (n,) s.  s, speed, accel_along : (n,) m, m/s, m/s^2 along the track.
+    lat, lon, h : (n,) rad, rad, m.
+    velocity_n : (n, 3) ENU ground velocity, m/s.
+    heading, pitch, roll : (n,) rad (see :mod:`navsim.rotations`).
+    mat_nb : (n, 3, 3) body-to-ENU DCM.
+    omega_ib_b : (n, 3) body rate relative to inertial space, body axes, rad/s.
+    specific_force_b : (n, 3) specific force in body axes, m/s^2.
+    position_e, velocity_e : (n, 3) ECEF position (m) and velocity relative to the Earth (m/s).
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    speed: np.ndarray
+    accel_along: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    velocity_n: np.ndarray
+    heading: np.ndarray
+    pitch: np.ndarray
+    roll: np.ndarray
+    mat_nb: np.ndarray
+    omega_ib_b: np.ndarray
+    specific_force_b: np.ndarray
+    position_e: np.ndarray
+    velocity_e: np.ndarray
+
+
+def _kinematics(track, profile, oscillations, t, full: bool):
+    from .earth import mat_en
+    from .track import track_frame
+
+    t = np.asarray(t, dtype=float)
+    s, speed, accel = profile.evaluate(t)
+    frame = track_frame(track, s)
+    earth = track.earth
+    velocity_n = speed[..., None] * frame.tangent_n
+    # rate of change of the ENU components of v^n
+    vdot_n = accel[..., None] * frame.tangent_n + (speed * speed)[..., None] * frame.dtangent_n_ds
+    offsets, offset_rates = _oscillation_offsets(oscillations, t)
+    heading = frame.heading + offsets["heading"]
+    pitch = frame.pitch + offsets["pitch"]
+    roll = frame.cant + offsets["roll"]
+    heading_rate = frame.dheading_ds * speed + offset_rates["heading"]
+    pitch_rate = frame.dpitch_ds * speed + offset_rates["pitch"]
+    roll_rate = frame.dcant_ds * speed + offset_rates["roll"]
+    mat_nb = mat_nb_from_hpr(heading, pitch, roll)
+    omega_nb_b = body_rate_from_hpr_rates(heading, pitch, roll, heading_rate, pitch_rate, roll_rate)
+    omega_ie_n = earth.earth_rate_n(frame.lat)
+    omega_en_n = earth.transport_rate_n(frame.lat, frame.h, velocity_n)
+    omega_in_n = omega_ie_n + omega_en_n
+    # omega_ib_b = omega_nb_b + C_bn (omega_ie_n + omega_en_n)
+    omega_ib_b = omega_nb_b + np.einsum("...ji,...j->...i", mat_nb, omega_in_n)
+    # f_n = dv_n/dt + (2 omega_ie_n + omega_en_n) x v_n - g_n     (003 eq. (1) solved for f)
+    f_n = vdot_n + np.cross(omega_ie_n + omega_in_n, velocity_n) - earth.gravity_n(frame.lat, frame.h)
+    f_b = np.einsum("...ji,...j->...i", mat_nb, f_n)
+    if not full:
+        return omega_ib_b, f_b
+    position_e = earth.geodetic_to_ecef(frame.lat, frame.lon, frame.h)
+    velocity_e = np.einsum("...ji,...j->...i", mat_en(frame.lat, frame.lon), velocity_n)
+    return TrueState(
+        t=t, s=s, speed=speed, accel_along=accel, lat=frame.lat, lon=frame.lon, h=frame.h,
+        velocity_n=velocity_n, heading=heading, pitch=pitch, roll=roll, mat_nb=mat_nb,
+        omega_ib_b=omega_ib_b, specific_force_b=f_b, position_e=position_e, velocity_e=velocity_e,
+    )
+
+
+def true_state(track, profile: SpeedProfile, t, oscillations: Sequence[Oscillation] = ()) -> TrueState:
+    """The full true state at times ``t`` (s), vectorised. See the module docstring."""
+    return _kinematics(track, profile, oscillations, t, full=True)
+
+
+def body_kinematics(track, profile: SpeedProfile, t, oscillations: Sequence[Oscillation] = ()):
+    """Only ``omega_ib_b`` and ``specific_force_b`` at times t: what the IMU integrates."""
+    return _kinematics(track, profile, oscillations, t, full=False)

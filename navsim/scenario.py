@@ -1,0 +1,435 @@
+"""Scenarios: frozen, typed configuration that round-trips to TOML.
+
+A scenario is track + motion + IMU + GNSS + outages + duration + rates + initial
+uncertainty. Bundled scenarios live in ``navsim/scenarios/*.toml``; :func:`load_scenario`
+takes a bundled name or a path. Every value is checked when the scenario is built, and a
+bad one raises :class:`~navsim.errors.ConfigError` naming the field (dotted path), the
+expectation and the value: unknown keys, wrong types, negative or non-multiple rates,
+malformed files, impossible tracks and motions.
+
+Degrees appear only here, at the edge, in fields whose names end in ``_deg``.
+
+Examples
+--------
+>>> from navsim.scenario import load_scenario
+>>> sc = load_scenario("paper-2012")
+>>> sc.timing.nav_period_s, sc.timing.steps
+(0.01, 100000)
+>>> sc2 = sc.with_overrides({"timing": {"duration_s": 10.0}})
+>>> sc2.timing.steps
+1000
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import sys
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError, check_multiple, check_positive
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "TimingConfig",
+    "TrackConfig",
+    "StationConfig",
+    "OscillationConfig",
+    "MotionConfig",
+    "ImuConfig",
+    "GnssConfig",
+    "OutageConfig",
+    "InitialUncertainty",
+    "Scenario",
+    "load_scenario",
+    "list_scenarios",
+]
+
+
+# ============================================================================ sections
+@dataclass(frozen=True, slots=True)
+class TimingConfig:
+    """The time base. Every period is a whole multiple of ``tick_s``.
+
+    Attributes
+    ----------
+    tick_s : base tick, s. imu_period_s : IMU sample period h, s (a multiple of the
+    tick). nav_period_s : navigation step, s (a multiple of the IMU period: the step
+    over which the multiple integrals of seed 000 are formed). gnss_period_s : GNSS
+    epoch period, s (a multiple of the navigation step). duration_s : episode length, s
+    (a multiple of the navigation step).
+    """
+
+    tick_s: float = 0.01
+    imu_period_s: float = 0.01
+    nav_period_s: float = 0.01
+    gnss_period_s: float = 1.0
+    duration_s: float = 1000.0
+
+    def __post_init__(self):
+        check_positive("timing.tick_s", self.tick_s)
+        check_multiple("timing.imu_period_s", self.imu_period_s, self.tick_s, "timing.tick_s")
+        check_multiple("timing.nav_period_s", self.nav_period_s, self.imu_period_s, "timing.imu_period_s")
+        check_multiple("timing.gnss_period_s", self.gnss_period_s, self.nav_period_s, "timing.nav_period_s")
+        check_multiple("timing.duration_s", self.duration_s, self.nav_period_s, "timing.nav_period_s")
+
+    @property
+    def imu_ticks(self) -> int:
+        """Ticks per IMU sample."""
+        return round(self.imu_period_s / self.tick_s)
+
+    @property
+    def samples_per_step(self) -> int:
+        """IMU samples per navigation step (m)."""
+        return round(self.nav_period_s / self.imu_period_s)
+
+    @property
+    def nav_ticks(self) -> int:
+        return self.imu_ticks * self.samples_per_step
+
+    @property
+    def steps_per_epoch(self) -> int:
+        """Navigation steps per GNSS epoch."""
+        return round(self.gnss_period_s / self.nav_period_s)
+
+    @property
+    def steps(self) -> int:
+        """Navigation steps in the episode."""
+        return round(self.duration_s / self.nav_period_s)
+
+
+@dataclass(frozen=True, slots=True)
+class TrackConfig:
+    """Which track: a bundled one by name, or a file (GeoJSON, GPX, CSV).
+
+    ``file`` is relative to the scenario file's folder. ``cant`` is ``"track"`` (the
+    track's own cant), ``"none"``, or ``"design"`` (railway design cant from curvature
+    at ``cant_design_speed_mps``, limited to ``cant_max_deg``).
+    """
+
+    bundled: str = ""
+    file: str = ""
+    cant: str = "track"
+    cant_design_speed_mps: float = 25.0
+    cant_max_deg: float = 6.0
+    smoothing_m: float = 0.0
+
+    def __post_init__(self):
+        if bool(self.bundled) == bool(self.file):
+            raise ConfigError("track", "exactly one of track.bundled or track.file", {"bundled": self.bundled, "file": self.file})
+        if self.cant not in ("track", "none", "design"):
+            raise ConfigError("track.cant", "one of 'track', 'none', 'design'", self.cant)
+
+
+@dataclass(frozen=True, slots=True)
+class StationConfig:
+    """A timetable stop: platform mark (arc length, m) and dwell time (s)."""
+
+    s_m: float
+    dwell_s: float = 30.0
+
+
+@dataclass(frozen=True, slots=True)
+class OscillationConfig:
+    """A harmonic body oscillation on one angle ("heading", "pitch" or "roll").
+
+    Give either ``amplitude_deg`` (angle amplitude) or ``rate_amplitude_deg_s`` (rate
+    amplitude = angle amplitude * 2 pi f, as seed 001 specifies its test motion).
+    """
+
+    angle: str
+    frequency_hz: float
+    amplitude_deg: float = 0.0
+    rate_amplitude_deg_s: float = 0.0
+    phase_deg: float = 0.0
+
+    def amplitude_rad(self) -> float:
+        if self.rate_amplitude_deg_s:
+            return math.radians(self.rate_amplitude_deg_s) / (2.0 * math.pi * self.frequency_hz)
+        return math.radians(self.amplitude_deg)
+
+
+@dataclass(frozen=True, slots=True)
+class MotionConfig:
+    """Along-track motion.
+
+    ``profile``: ``"constant"`` (``speed_mps`` from ``start_s_m``), ``"timetable"``
+    (``stations`` with ``cruise_speed_mps``, ``max_accel_mps2``, ``max_decel_mps2``,
+    ``jerk_time_s``) or ``"external"`` (samples pushed step by step; ``start_s_m`` and
+    ``speed_mps`` give the initial state).
+    """
+
+    profile: str = "constant"
+    speed_mps: float = 20.0
+    start_s_m: float = 0.0
+    stations: tuple[StationConfig, ...] = ()
+    cruise_speed_mps: float = 25.0
+    max_accel_mps2: float = 0.8
+    max_decel_mps2: float = 0.8
+    jerk_time_s: float = 2.0
+    oscillations: tuple[OscillationConfig, ...] = ()
+
+    def __post_init__(self):
+        if self.profile not in ("constant", "timetable", "external"):
+            raise ConfigError("motion.profile", "one of 'constant', 'timetable', 'external'", self.profile)
+        if self.profile == "timetable" and len(self.stations) < 2:
+            raise ConfigError("motion.stations", "at least two stations for a timetable", len(self.stations))
+        if self.start_s_m < 0:
+            raise ConfigError("motion.start_s_m", "an arc length >= 0", self.start_s_m)
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """IMU: a preset of :func:`navsim.sensors.imu.imu_preset` plus per-field overrides.
+
+    ``orders``: how many multiple-integral orders r = 1..orders are produced (seed 000
+    uses up to 4). ``quadrature_nodes``: Gauss-Legendre nodes per sample used to
+    integrate the true motion. ``gyro`` / ``accel``: overrides of the preset's fields.
+    """
+
+    preset: str = "ideal"
+    orders: int = 4
+    quadrature_nodes: int = 4
+    gyro: dict = field(default_factory=dict)
+    accel: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not 1 <= self.orders <= 6:
+            raise ConfigError("imu.orders", "an integer in 1..6", self.orders)
+        if not 1 <= self.quadrature_nodes <= 16:
+            raise ConfigError("imu.quadrature_nodes", "an integer in 1..16", self.quadrature_nodes)
+
+
+@dataclass(frozen=True, slots=True)
+class GnssConfig:
+    """GNSS receiver: constellation, error preset and overrides.
+
+    ``constellation``: ``"gps"``, ``"glonass"`` or ``"yuma:<file>"`` (relative to the
+    scenario file). ``epoch_phase_deg`` rotates the constellation in time (changes the
+    geometry). ``overrides``: fields of the preset's error model.
+    """
+
+    enabled: bool = True
+    constellation: str = "gps"
+    preset: str = "paper-2012"
+    epoch_phase_deg: float = 0.0
+    overrides: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class OutageConfig:
+    """GNSS outages: scheduled windows, track segments, sky masks, random on/off.
+
+    ``windows_s``: [[start, end], ...] seconds. ``segment_kinds``: track segment kinds
+    in which signals are lost ("tunnel") or masked ("cutting", "urban").
+    ``options``: further fields of the outage model (sky masks, Markov chain).
+    """
+
+    windows_s: tuple[tuple[float, float], ...] = ()
+    segment_kinds: tuple[str, ...] = ()
+    options: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        for i, window in enumerate(self.windows_s):
+            if len(window) != 2 or not (0 <= window[0] < window[1]):
+                raise ConfigError(f"outages.windows_s[{i}]", "[start, end] with 0 <= start < end", list(window))
+
+
+@dataclass(frozen=True, slots=True)
+class InitialUncertainty:
+    """1-sigma of the initial estimate handed to estimators (per axis).
+
+    The simulator draws the prior's error from these (stream ``initial_error``).
+    """
+
+    position_m: float = 10.0
+    velocity_mps: float = 0.1
+    attitude_deg: float = 0.1
+
+    def __post_init__(self):
+        for name in ("position_m", "velocity_mps", "attitude_deg"):
+            value = getattr(self, name)
+            if not (value >= 0 and math.isfinite(value)):
+                raise ConfigError(f"initial.{name}", "a finite sigma >= 0", value)
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    """A complete scenario. Build with :func:`load_scenario` or :meth:`from_dict`."""
+
+    name: str
+    description: str = ""
+    earth: str = "wgs84"
+    timing: TimingConfig = TimingConfig()
+    track: TrackConfig = TrackConfig(bundled="paper-2012")
+    motion: MotionConfig = MotionConfig()
+    imu: ImuConfig = ImuConfig()
+    gnss: GnssConfig = GnssConfig()
+    outages: OutageConfig = OutageConfig()
+    initial: InitialUncertainty = InitialUncertainty()
+    base_dir: str = ""  # folder that relative file names refer to (not serialised)
+
+    def __post_init__(self):
+        if self.earth not in ("spherical", "wgs84"):
+            raise ConfigError("earth", "one of 'spherical', 'wgs84'", self.earth)
+
+    # -- (de)serialisation -------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: dict, source: str | None = None, base_dir: str = "") -> "Scenario":
+        """Build from a nested dict (as read from TOML); errors name the dotted field."""
+        try:
+            scenario = _from_dict(cls, data, "", exclude=("base_dir",))
+        except ConfigError as exc:
+            if source and not exc.source:
+                raise ConfigError(exc.field, exc.expected, exc.got, source=source) from None
+            raise
+        return dataclasses.replace(scenario, base_dir=base_dir)
+
+    def to_dict(self) -> dict:
+        """Nested dict of plain values (TOML-ready); ``from_dict(to_dict())`` round-trips."""
+        data = _to_dict(self)
+        data.pop("base_dir", None)
+        return data
+
+    def to_toml(self) -> str:
+        import tomli_w
+
+        return tomli_w.dumps(self.to_dict())
+
+    def with_overrides(self, overrides: dict) -> "Scenario":
+        """A copy with nested overrides merged in, e.g. ``{"timing": {"duration_s": 60}}``."""
+        return Scenario.from_dict(_deep_merge(self.to_dict(), overrides), base_dir=self.base_dir)
+
+    def config_hash(self) -> str:
+        """SHA-256 (16 hex digits) of the canonical JSON of :meth:`to_dict`."""
+        blob = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"), default=str)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+    def resolve_path(self, name: str) -> Path:
+        """A file name from the scenario, relative to the scenario's folder."""
+        path = Path(name)
+        return path if path.is_absolute() or not self.base_dir else Path(self.base_dir) / path
+
+
+# ============================================================================ loading
+def list_scenarios() -> list[str]:
+    """Names of the bundled scenarios."""
+    folder = resources.files("navsim") / "scenarios"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a bundled scenario by name (``"paper-2012"``) or a TOML file by path."""
+    text_path = Path(name_or_path)
+    if text_path.suffix == ".toml" or text_path.exists():
+        path = text_path
+        if not path.exists():
+            raise ConfigError("scenario", "an existing TOML file", str(name_or_path))
+    else:
+        path = Path(str(resources.files("navsim") / "scenarios" / f"{name_or_path}.toml"))
+        if not path.exists():
+            raise ConfigError("scenario", f"a bundled scenario {list_scenarios()} or a .toml path", str(name_or_path))
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("scenario", "valid TOML", f"{exc}", source=str(path)) from None
+    return Scenario.from_dict(data, source=path.name, base_dir=str(path.parent))
+
+
+# ============================================================================ machinery
+def _deep_merge(base: dict, overrides: dict) -> dict:
+    merged = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict) and key not in ("gyro", "accel", "overrides", "options"):
+            merged[key] = _deep_merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def _type_name(tp) -> str:
+    return getattr(tp, "__name__", str(tp))
+
+
+def _convert(tp, value, path: str):
+    origin = typing.get_origin(tp)
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            raise ConfigError(path, "a table", value)
+        return _from_dict(tp, value, path)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(path, "an array", value)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], v, f"{path}[{i}]") for i, v in enumerate(value))
+        if len(args) != len(value):
+            raise ConfigError(path, f"an array of {len(args)} values", list(value))
+        return tuple(_convert(a, v, f"{path}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+    if origin in (typing.Union, types.UnionType):
+        errors = []
+        for arg in typing.get_args(tp):
+            try:
+                return _convert(arg, value, path)
+            except ConfigError as exc:
+                errors.append(exc)
+        raise errors[0]
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(path, "a number", value)
+        if not math.isfinite(value):
+            raise ConfigError(path, "a finite number", value)
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not (isinstance(value, int) or (isinstance(value, float) and value.is_integer())):
+            raise ConfigError(path, "an integer", value)
+        return int(value)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(path, "true or false", value)
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(path, "a string", value)
+        return value
+    if tp is dict or origin is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(path, "a table", value)
+        return dict(value)
+    raise TypeError(f"unsupported config type {tp!r} at {path}")  # programming error
+
+
+def _from_dict(cls, data: dict, prefix: str, exclude: tuple[str, ...] = ()):
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls) if f.init and f.name not in exclude]
+    for key in data:
+        if key not in names:
+            raise ConfigError(f"{prefix}{key}", f"a known key of [{prefix.rstrip('.') or 'scenario'}]: {names}", key)
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name in data:
+            kwargs[f.name] = _convert(hints[f.name], data[f.name], f"{prefix}{f.name}")
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING and f.init:
+            raise ConfigError(f"{prefix}{f.name}", "a value (this field is required)", None)
+    return cls(**kwargs)
+
+
+def _to_dict(obj) -> Any:
+    if dataclasses.is_dataclass(obj):
+        return {f.name: _to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.init}
+    if isinstance(obj, (tuple, list)):
+        return [_to_dict(v) for v in obj]
+    if isinstance(obj, dict):
+        return {k: _to_dict(v) for k, v in obj.items()}
+    return obj

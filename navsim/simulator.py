@@ -1,0 +1,432 @@
+"""The simulator: the one owner of evolving world state and random streams.
+
+:class:`Simulator` turns a :class:`~navsim.scenario.Scenario` into truth and
+measurements, step by step or in vectorised chunks, with the same numbers either way.
+
+Time base
+    Integer ticks; the navigation step is the unit of :meth:`Simulator.advance`. A step
+    k covers ``[k, k+1) * nav_period_s`` and holds ``m = samples_per_step`` IMU samples.
+    GNSS epochs fall at the *end* of every ``steps_per_epoch``-th step.
+Random streams
+    ``reset(seed)`` makes ``SeedSequence(seed)`` and spawns, in this fixed order, the
+    streams ``motion, imu, gnss, outages, initial_error`` (:data:`STREAMS`). Each sensor
+    draws a fixed-width block per sample or epoch, so the numbers do not depend on the
+    chunk size, and switching one source off changes no other stream.
+IMU truth
+    For each sample the true ``omega_ib_b`` and ``specific_force_b`` are evaluated at
+    Gauss-Legendre nodes and combined into the increments of multiple integrals of seed
+    000 eq. (1.14) (:func:`navsim.sensors.imu.multiple_integral_rule`), then the
+    truth-side error model is applied in the increment domain.
+
+Examples
+--------
+>>> from navsim import Simulator, load_scenario
+>>> sim = Simulator(load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}}))
+>>> start = sim.reset(seed=0)
+>>> chunk = sim.advance(100)
+>>> chunk.imu.dtheta_r.shape
+(100, 4, 3)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from .earth import earth_model
+from .errors import ConfigError
+from .motion import (
+    ConstantSpeed,
+    ExternalMotion,
+    Oscillation,
+    Station,
+    Timetable,
+    TrueState,
+    body_kinematics,
+    true_state,
+)
+from .scenario import Scenario
+from .sensors import gnss as gnss_mod
+from .sensors import imu as imu_mod
+from .sensors import outages as outage_mod
+
+__all__ = ["STREAMS", "Simulator", "ImuBlock", "Chunk", "Prior", "Start", "build_track", "build_profile"]
+
+STREAMS = ("motion", "imu", "gnss", "outages", "initial_error")
+"""Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
+
+
+# ============================================================================ outputs
+@dataclass(frozen=True, slots=True)
+class ImuBlock:
+    """IMU output of n navigation steps of m samples each (with sensor errors).
+
+    Attributes
+    ----------
+    dtheta_r, dv_r : (n, R, 3)
+        Increments of r-fold integrals of angular rate (rad s^(r-1)) and specific force
+        (m/s * s^(r-1)) over each navigation step, seed 000 eq. (1.14); ``[:, 0]`` are
+        the ordinary increments dTheta, dV.
+    dtheta_sample, dv_sample : (n, m, R, 3)
+        The same over each IMU sample inside the step.
+    rate_b, accel_b : (n, m, 3)
+        Rate outputs (rad/s, m/s^2) at the end of each sample.
+    """
+
+    dtheta_r: np.ndarray
+    dv_r: np.ndarray
+    dtheta_sample: np.ndarray
+    dv_sample: np.ndarray
+    rate_b: np.ndarray
+    accel_b: np.ndarray
+
+    @property
+    def dtheta_sub(self) -> np.ndarray:
+        """First-order per-sample increments (n, m, 3): the traditional algorithms' input."""
+        return self.dtheta_sample[:, :, 0, :]
+
+    @property
+    def dv_sub(self) -> np.ndarray:
+        return self.dv_sample[:, :, 0, :]
+
+
+@dataclass(frozen=True, slots=True)
+class Chunk:
+    """Truth and measurements of ``n`` consecutive navigation steps.
+
+    Attributes
+    ----------
+    step0 : int
+        Index of the first step. ``t`` (n,) are the step *end* times, s.
+    truth : TrueState
+        The true state at the step end times.
+    imu : ImuBlock
+        IMU output over each step.
+    gnss : GnssEpochs or None
+        The GNSS epochs that fall in this chunk (None when GNSS is disabled);
+        ``gnss_step`` (k,) gives, for each epoch, the index of its step in the chunk.
+    receiver_outage : (k,) bool
+        True where the whole receiver was in an outage at that epoch.
+    """
+
+    step0: int
+    t: np.ndarray
+    truth: TrueState
+    imu: ImuBlock
+    gnss: object | None
+    gnss_step: np.ndarray
+    receiver_outage: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True, slots=True)
+class Prior:
+    """The initial estimate handed to estimators: truth plus a drawn error.
+
+    ``covariance`` (9, 9) is diagonal over [position ENU (m), velocity ENU (m/s),
+    attitude small angles (rad) about ENU axes], from the scenario's
+    ``initial`` section; the error actually drawn is kept out of this object.
+    """
+
+    t: float
+    lat: float
+    lon: float
+    h: float
+    velocity_n: np.ndarray
+    heading: float
+    pitch: float
+    roll: float
+    covariance: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class Start:
+    """What :meth:`Simulator.reset` returns: the truth at t0 and the estimator's prior."""
+
+    truth: TrueState
+    prior: Prior
+
+
+# ============================================================================ builders
+def build_track(scenario: Scenario):
+    """The scenario's track object (bundled or from a file), on the scenario's Earth."""
+    from . import track as track_mod
+
+    cfg = scenario.track
+    earth = earth_model(scenario.earth)
+    if cfg.bundled:
+        track = track_mod.load_bundled_track(cfg.bundled, earth=earth)
+    else:
+        track = track_mod.load_track_file(scenario.resolve_path(cfg.file), earth=earth, smoothing_m=cfg.smoothing_m)
+    if cfg.cant != "track":
+        track = track_mod.with_cant(
+            track, mode=cfg.cant, design_speed=cfg.cant_design_speed_mps, max_cant=math.radians(cfg.cant_max_deg)
+        )
+    return track
+
+
+def build_profile(scenario: Scenario):
+    """The scenario's speed profile (a fresh :class:`ExternalMotion` for "external")."""
+    m = scenario.motion
+    if m.profile == "constant":
+        return ConstantSpeed(speed=m.speed_mps, s0=m.start_s_m)
+    if m.profile == "timetable":
+        return Timetable(
+            stations=tuple(Station(s=st.s_m, dwell=st.dwell_s) for st in m.stations),
+            cruise_speed=m.cruise_speed_mps, max_accel=m.max_accel_mps2,
+            max_decel=m.max_decel_mps2, jerk_time=m.jerk_time_s,
+        )
+    return ExternalMotion(0.0, m.start_s_m, m.speed_mps, 0.0)
+
+
+def _oscillations(scenario: Scenario) -> tuple[Oscillation, ...]:
+    return tuple(
+        Oscillation(o.angle, o.amplitude_rad(), o.frequency_hz, math.radians(o.phase_deg))
+        for o in scenario.motion.oscillations
+    )
+
+
+def _replace_checked(obj, overrides: dict, prefix: str):
+    names = {f.name for f in dataclasses.fields(obj)}
+    for key in overrides:
+        if key not in names:
+            raise ConfigError(f"{prefix}.{key}", f"a field of {type(obj).__name__}: {sorted(names)}", key)
+    converted = {}
+    for key, value in overrides.items():
+        current = getattr(obj, key)
+        converted[key] = np.asarray(value, dtype=float) if isinstance(current, np.ndarray) else (
+            tuple(value) if isinstance(current, tuple) and isinstance(value, list) else value)
+    try:
+        return dataclasses.replace(obj, **converted)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(prefix, "valid field values", f"{overrides} ({exc})") from None
+
+
+def build_imu_model(scenario: Scenario):
+    """The truth-side IMU error model: preset plus ``[imu.gyro]``/``[imu.accel]`` overrides."""
+    model = imu_mod.imu_preset(scenario.imu.preset)
+    changes = {}
+    if scenario.imu.gyro:
+        changes["gyro"] = _replace_checked(model.gyro, scenario.imu.gyro, "imu.gyro")
+    if scenario.imu.accel:
+        changes["accel"] = _replace_checked(model.accel, scenario.imu.accel, "imu.accel")
+    return dataclasses.replace(model, **changes) if changes else model
+
+
+def build_gnss(scenario: Scenario, earth):
+    """Constellation and truth-side GNSS error model of the scenario."""
+    cfg = scenario.gnss
+    if cfg.constellation.startswith("yuma:"):
+        constellation = gnss_mod.load_yuma(scenario.resolve_path(cfg.constellation[5:]))
+    elif cfg.constellation in ("gps", "glonass"):
+        constellation = gnss_mod.walker_constellation(cfg.constellation, phase=math.radians(cfg.epoch_phase_deg))
+    else:
+        raise ConfigError("gnss.constellation", "'gps', 'glonass' or 'yuma:<file>'", cfg.constellation)
+    model = gnss_mod.gnss_preset(cfg.preset)
+    if cfg.overrides:
+        model = _replace_checked(model, cfg.overrides, "gnss.overrides")
+    return constellation, model
+
+
+def build_outage_model(scenario: Scenario):
+    cfg = scenario.outages
+    kwargs = dict(cfg.options)
+    kwargs["windows"] = tuple(tuple(w) for w in cfg.windows_s)
+    kwargs["segment_kinds"] = tuple(cfg.segment_kinds)
+    try:
+        return outage_mod.OutageModel(**kwargs)
+    except TypeError as exc:
+        raise ConfigError("outages.options", "fields of OutageModel", f"{cfg.options} ({exc})") from None
+
+
+# ============================================================================ simulator
+class Simulator:
+    """Step-wise and chunked generation of truth and measurements for one scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The configuration; everything heavy (track, constellation) is built once here.
+    """
+
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+        self.timing = scenario.timing
+        self.earth = earth_model(scenario.earth)
+        self.track = build_track(scenario)
+        self.profile = build_profile(scenario)
+        self.oscillations = _oscillations(scenario)
+        self.imu_model = build_imu_model(scenario)
+        self.constellation, self.gnss_model = build_gnss(scenario, self.earth)
+        self.outage_model = build_outage_model(scenario)
+        self._nodes, self._weights = imu_mod.multiple_integral_rule(scenario.imu.quadrature_nodes, scenario.imu.orders)
+        self._check_motion_fits_track()
+        self._step = None
+
+    # -- validation ----------------------------------------------------------------
+    def _check_motion_fits_track(self) -> None:
+        if isinstance(self.profile, ExternalMotion):
+            return
+        t = np.linspace(0.0, self.timing.duration_s, 2001)
+        s = self.profile.evaluate(t)[0]
+        bad = np.flatnonzero((s < 0) | (s > self.track.length))
+        if bad.size:
+            raise ConfigError(
+                "motion", f"arc length within the track [0, {self.track.length:.1f}] m for the whole episode",
+                f"s = {s[bad[0]]:.1f} m at t = {t[bad[0]]:.1f} s",
+            )
+
+    # -- state -----------------------------------------------------------------------
+    @property
+    def step_index(self) -> int:
+        """Number of navigation steps generated since the last reset."""
+        self._require_reset()
+        return self._step
+
+    @property
+    def t(self) -> float:
+        """Current time, s (exactly step_index * nav_period)."""
+        return self.step_index * self.timing.nav_period_s
+
+    @property
+    def done(self) -> bool:
+        return self.step_index >= self.timing.steps
+
+    def _require_reset(self):
+        if self._step is None:
+            raise RuntimeError("call Simulator.reset(seed) before stepping")
+
+    def reset(self, seed: int | None = None) -> Start:
+        """Start a new episode: fresh random streams, initial sensor states, the prior."""
+        seq = np.random.SeedSequence(seed)
+        self.seed_entropy = seq.entropy
+        self.rngs = dict(zip(STREAMS, (np.random.Generator(np.random.PCG64(s)) for s in seq.spawn(len(STREAMS)))))
+        self._step = 0
+        if isinstance(self.profile, ExternalMotion):
+            m = self.scenario.motion
+            self.profile.reset(0.0, m.start_s_m, m.speed_mps, 0.0)
+        self.imu_state = imu_mod.ImuState.initial(self.imu_model, self.rngs["imu"])
+        self.gnss_state = gnss_mod.GnssState.initial(self.gnss_model, self.constellation, self.rngs["gnss"])
+        self.outage_state = outage_mod.OutageState.initial(self.outage_model, len(self.constellation.prn), self.rngs["outages"])
+        truth0 = self.truth_at(np.array([0.0]))
+        return Start(truth=truth0, prior=self._draw_prior(truth0))
+
+    def _draw_prior(self, truth0: TrueState) -> Prior:
+        init = self.scenario.initial
+        sig_att = math.radians(init.attitude_deg)
+        e = self.rngs["initial_error"].standard_normal(9)
+        pos_err_n = init.position_m * e[:3]
+        r_n, r_e = self.earth.radii(truth0.lat[0])
+        lat = truth0.lat[0] + pos_err_n[1] / (r_n + truth0.h[0])
+        lon = truth0.lon[0] + pos_err_n[0] / ((r_e + truth0.h[0]) * math.cos(truth0.lat[0]))
+        variances = np.repeat([init.position_m**2, init.velocity_mps**2, sig_att**2], 3)
+        return Prior(
+            t=0.0, lat=float(lat), lon=float(lon), h=float(truth0.h[0] + pos_err_n[2]),
+            velocity_n=truth0.velocity_n[0] + init.velocity_mps * e[3:6],
+            heading=float(truth0.heading[0] + sig_att * e[8]),
+            pitch=float(truth0.pitch[0] + sig_att * e[6]),
+            roll=float(truth0.roll[0] + sig_att * e[7]),
+            covariance=np.diag(variances),
+        )
+
+    def truth_at(self, t) -> TrueState:
+        """The true state at arbitrary times (s) within the episode."""
+        return true_state(self.track, self.profile, t, self.oscillations)
+
+    # -- external motion ---------------------------------------------------------------
+    def push_motion(self, s: float, speed: float, accel: float) -> None:
+        """Give the external motion state at the end of the next step (profile "external")."""
+        if not isinstance(self.profile, ExternalMotion):
+            raise ConfigError("motion.profile", "'external' to push motion samples", self.scenario.motion.profile)
+        self._require_reset()
+        if not 0.0 <= s <= self.track.length:
+            raise ConfigError("motion.external.s", f"an arc length in [0, {self.track.length:.1f}] m", s)
+        self.profile.push((self.step_index + 1) * self.timing.nav_period_s, s, speed, accel)
+
+    # -- generation --------------------------------------------------------------------
+    def advance(self, n_steps: int = 1) -> Chunk:
+        """Generate the next ``n_steps`` navigation steps (fewer at the episode's end)."""
+        self._require_reset()
+        n = min(int(n_steps), self.timing.steps - self._step)
+        if n <= 0:
+            raise RuntimeError("the episode is over: call reset()")
+        timing = self.timing
+        m, h, dt = timing.samples_per_step, timing.imu_period_s, timing.nav_period_s
+        k0 = self._step
+        steps = np.arange(k0, k0 + n)
+        # sample start times from integer ticks (never a float accumulator)
+        sample_index = k0 * m + np.arange(n * m)
+        t_start = sample_index * h
+        t_end_steps = (steps + 1) * dt
+        # --- truth at step ends, IMU truth at quadrature nodes
+        truth = self.truth_at(t_end_steps)
+        t_nodes = t_start[:, None] + self._nodes[None, :] * h
+        omega_nodes, force_nodes = body_kinematics(self.track, self.profile, t_nodes, self.oscillations)
+        powers = h ** np.arange(1, self._weights.shape[0] + 1)
+        # (1.14): r-fold integral = h^r sum_j w[r-1, j] g(t_k + tau_j h)
+        dtheta_true = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, omega_nodes)
+        dv_true = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, force_nodes)
+        if m == 1:
+            omega_end, force_end = truth.omega_ib_b, truth.specific_force_b
+        else:
+            omega_end, force_end = body_kinematics(self.track, self.profile, t_start + h, self.oscillations)
+        out, self.imu_state = imu_mod.apply_imu_errors(
+            t_start, h, dtheta_true, dv_true, omega_end, force_end, self.imu_model, self.imu_state, self.rngs["imu"]
+        )
+        R = dtheta_true.shape[1]
+        dtheta_sample = out.dtheta_r.reshape(n, m, R, 3)
+        dv_sample = out.dv_r.reshape(n, m, R, 3)
+        if m == 1:
+            dtheta_step, dv_step = dtheta_sample[:, 0], dv_sample[:, 0]
+        else:
+            dtheta_step = imu_mod.compose_multiple_integrals(dtheta_sample, h)
+            dv_step = imu_mod.compose_multiple_integrals(dv_sample, h)
+        imu = ImuBlock(
+            dtheta_r=dtheta_step, dv_r=dv_step, dtheta_sample=dtheta_sample, dv_sample=dv_sample,
+            rate_b=out.rate_b.reshape(n, m, 3), accel_b=out.accel_b.reshape(n, m, 3),
+        )
+        # --- GNSS epochs at the end of every steps_per_epoch-th step
+        epoch_steps = np.flatnonzero((steps + 1) % timing.steps_per_epoch == 0)
+        gnss_epochs, receiver_outage = None, np.zeros(len(epoch_steps), dtype=bool)
+        if self.scenario.gnss.enabled:
+            idx = epoch_steps
+            gnss_epochs, self.gnss_state = gnss_mod.simulate_epochs(
+                t_end_steps[idx], truth.position_e[idx], truth.velocity_e[idx], self.constellation,
+                self.gnss_model, self.gnss_state, self.rngs["gnss"], self.earth,
+            )
+            visible, receiver_outage, self.outage_state = outage_mod.visibility(
+                t_end_steps[idx], truth.s[idx], truth.heading[idx], gnss_epochs.elevation, gnss_epochs.azimuth,
+                self.track.segments, self.outage_model, self.outage_state, self.rngs["outages"],
+            )
+            gnss_epochs = dataclasses.replace(gnss_epochs, valid=gnss_epochs.valid & visible)
+        self._step += n
+        return Chunk(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
+                     gnss_step=epoch_steps, receiver_outage=receiver_outage)
+
+    def chunks(self, chunk_steps: int = 10_000) -> Iterator[Chunk]:
+        """Iterate over the rest of the episode in chunks of ``chunk_steps`` steps."""
+        self._require_reset()
+        while self._step < self.timing.steps:
+            yield self.advance(chunk_steps)
+
+    def run(self, seed: int | None = None, chunk_steps: int = 10_000) -> tuple[Start, list[Chunk]]:
+        """Reset and generate a whole episode; returns the start and the list of chunks."""
+        start = self.reset(seed)
+        return start, list(self.chunks(chunk_steps))
+
+
+def concat_chunks(chunks: list[Chunk]) -> dict[str, np.ndarray]:
+    """Flatten chunks into one dict of arrays (the layout written by ``navsim simulate``)."""
+    from .io import chunk_arrays
+
+    parts = [chunk_arrays(c) for c in chunks]
+    return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+
