@@ -1,0 +1,169 @@
+"""The ``navsim`` command.
+
+Sub-commands
+------------
+``navsim scenarios``                         list the bundled scenarios
+``navsim show SCENARIO``                     print the resolved scenario as TOML
+``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
+``navsim paper 000|001 [--json]``            rerun a seed paper's experiments
+
+Exit status: 0 on success, 2 on bad input (the message names the field), 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .errors import NavsimError
+
+__all__ = ["main"]
+
+
+def _parse_overrides(items: list[str]) -> dict:
+    """``--set timing.duration_s=10`` -> {"timing": {"duration_s": 10.0}} (TOML values)."""
+    import tomllib
+
+    out: dict = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise NavsimError(f"--set expects KEY=VALUE, got {item!r}")
+        try:
+            parsed = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value  # a bare string
+        node = out
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = parsed
+    return out
+
+
+def _scenario(args):
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if getattr(args, "set", None):
+        scenario = scenario.with_overrides(_parse_overrides(args.set))
+    return scenario
+
+
+def _cmd_scenarios(args) -> int:
+    from .scenario import list_scenarios, load_scenario
+
+    for name in list_scenarios():
+        print(f"{name:24s} {load_scenario(name).description}")
+    return 0
+
+
+def _cmd_show(args) -> int:
+    print(_scenario(args).to_toml(), end="")
+    return 0
+
+
+def _cmd_simulate(args) -> int:
+    from tqdm import tqdm
+
+    from .io import write_csv, write_npz
+    from .simulator import Simulator
+
+    scenario = _scenario(args)
+    sim = Simulator(scenario)
+    sim.reset(args.seed)
+    out = Path(args.output)
+    fmt = args.format or ("csv" if out.suffix == ".csv" else "npz")
+    total = scenario.timing.steps
+    bar = tqdm(total=total, unit="step", disable=args.quiet or None, desc=f"simulate {scenario.name}", file=sys.stderr)
+
+    def chunks():
+        for chunk in sim.chunks(args.chunk):
+            bar.update(len(chunk))
+            yield chunk
+
+    n_sats = len(sim.constellation.prn)
+    if fmt == "csv":
+        paths = write_csv(out, chunks(), n_sats=n_sats)
+    else:
+        meta = {"scenario_toml": scenario.to_toml(), "seed": -1 if args.seed is None else args.seed,
+                "config_hash": scenario.config_hash()}
+        paths = (write_npz(out, chunks(), meta=meta, n_sats=n_sats),)
+    bar.close()
+    for path in paths:
+        print(path)
+    return 0
+
+
+def _cmd_paper(args) -> int:
+    import importlib
+
+    try:
+        module = importlib.import_module(f"navsim.paper.seed{args.seed_id}")
+    except ModuleNotFoundError:
+        raise NavsimError(f"seed: expected one of 000, 001, 003 with its reproduction installed, got {args.seed_id!r}") from None
+    rows = module.run(plot_dir=args.plot_dir, quick=args.quick)
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    widths = (14, 46, 12, 12, 10)
+    print("".join(h.ljust(w) for h, w in zip(("ref", "quantity", "paper", "navsim", "unit"), widths)))
+    for row in rows:
+        cells = [row["ref"], row["quantity"], _fmt(row["paper"]), _fmt(row["navsim"]), row["unit"]]
+        print("".join(str(c).ljust(w) for c, w in zip(cells, widths)))
+    if args.plot_dir:
+        print(f"plots in {args.plot_dir}", file=sys.stderr)
+    return 0
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="navsim", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    sub.add_parser("scenarios", help="list the bundled scenarios").set_defaults(func=_cmd_scenarios)
+
+    p = sub.add_parser("show", help="print the resolved scenario as TOML")
+    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field, e.g. timing.duration_s=60")
+    p.set_defaults(func=_cmd_show)
+
+    p = sub.add_parser("simulate", help="write truth and measurements of one episode")
+    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("-o", "--output", required=True, help="output file (.npz or .csv)")
+    p.add_argument("--format", choices=("npz", "csv"), help="default: from the file suffix")
+    p.add_argument("--chunk", type=int, default=10_000, help="steps generated per chunk (memory bound)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("paper", help="rerun a seed paper's experiments beside its printed figures")
+    p.add_argument("seed_id", choices=("000", "001", "003"))
+    p.add_argument("--json", action="store_true", help="print rows as JSON")
+    p.add_argument("--plot-dir", default=None, help="write one PNG per experiment here")
+    p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
+    p.set_defaults(func=_cmd_paper)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except NavsimError as exc:
+        print(f"navsim: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
