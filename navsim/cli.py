@@ -75,6 +75,7 @@ def _cmd_simulate(args) -> int:
     sim = Simulator(scenario)
     sim.reset(args.seed)
     out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
     fmt = args.format or ("csv" if out.suffix == ".csv" else "npz")
     total = scenario.timing.steps
     bar = tqdm(total=total, unit="step", disable=args.quiet or None, desc=f"simulate {scenario.name}", file=sys.stderr)
@@ -94,6 +95,15 @@ def _cmd_simulate(args) -> int:
     bar.close()
     for path in paths:
         print(path)
+    if args.plot:
+        import numpy as np
+
+        from .plots import plot_episode
+
+        if fmt == "csv":
+            raise NavsimError("--plot: expected an .npz output to plot from, got a CSV output")
+        with np.load(paths[0]) as data:
+            print(plot_episode(data, args.plot, title=f"{scenario.name}, seed {args.seed}"))
     return 0
 
 
@@ -145,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chunk", type=int, default=10_000, help="steps generated per chunk (memory bound)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--plot", default=None, metavar="PNG", help="also write a plot of the episode")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("paper", help="rerun a seed paper's experiments beside its printed figures")
