@@ -1,0 +1,63 @@
+"""Sensors: IMU (:mod:`navsim.sensors.imu`), GNSS (:mod:`navsim.sensors.gnss`) and GNSS
+signal outages (:mod:`navsim.sensors.outages`).
+
+All of them are truth-side models: they turn the true motion into measurements with
+errors drawn from explicit ``numpy.random.Generator`` streams and carry their recursive
+error states in frozen state objects (chunk-invariant generation).
+"""
+
+from __future__ import annotations
+
+from . import gnss, outages
+from .gnss import (
+    C_LIGHT,
+    Constellation,
+    Fix,
+    GnssEpochs,
+    GnssErrorModel,
+    GnssState,
+    SkyGeometry,
+    VelocityFix,
+    elevation_azimuth,
+    least_squares_fix,
+    load_yuma,
+    reference_almanac,
+    satellite_states,
+    simulate_epochs,
+    sky_geometry,
+    solve_kepler,
+    velocity_fix,
+    walker_constellation,
+    write_yuma,
+)
+from .outages import OutageModel, OutageState, canyon_mask_elevation, visibility
+
+# from . import imu  # IMU module (navsim/sensors/imu.py), written separately
+
+__all__ = [
+    "gnss",
+    "outages",
+    "C_LIGHT",
+    "Constellation",
+    "Fix",
+    "GnssEpochs",
+    "GnssErrorModel",
+    "GnssState",
+    "SkyGeometry",
+    "VelocityFix",
+    "elevation_azimuth",
+    "least_squares_fix",
+    "load_yuma",
+    "reference_almanac",
+    "satellite_states",
+    "simulate_epochs",
+    "sky_geometry",
+    "solve_kepler",
+    "velocity_fix",
+    "walker_constellation",
+    "write_yuma",
+    "OutageModel",
+    "OutageState",
+    "canyon_mask_elevation",
+    "visibility",
+]
