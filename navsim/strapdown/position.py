@@ -30,7 +30,8 @@ exact
     partial increment (5.4) ``dS_s = int int DeltaTheta(t_k, tau) x a(tau) dtau dt
     = int_0^T (T - tau) DeltaTheta(tau) x a(tau) dtau`` by the *constant-model* formula
     ``dS_s = T/6 DT1 x DV1`` (constant omega and a; traditional = smoothing for this
-    order). Needs ``dtheta_r`` R >= 1 and ``dv_r`` R >= 2.
+    order). Needs ``dtheta_r`` R >= 1 and ``dv_r`` R >= 2. Local error of dS_s
+    ``T^4/24 (B_w x A_a) + O(T^5)``.
 exact-smoothing
     (5.2) with dS_s for *linear* omega and a models whose coefficients come from (3.5)
     (the smoothing approach, "by analogy" in the paper). Derived here:
@@ -38,7 +39,9 @@ exact-smoothing
     and with (3.5)
     ``dS_s = T/15 DT1 x DV1 - 3/10 DT1 x DV2 + 1/5 DT2 x DV1 + 3/(5T) DT2 x DV2``.
     Needs ``dtheta_r`` R >= 2 and ``dv_r`` R >= 2. Exact when omega and a are linear;
-    local error O(DeltaT**6) for general motion (tests/strapdown/test_position.py).
+    local error of dS_s (computed - exact, A..D = omega, a and their derivatives at t_k)
+    ``T^5 [A_w x C_a / 360 - C_w x A_a / 720] + O(T^6)``
+    (tests/strapdown/test_position.py).
 exact-invariant
     (5.2) with the *acceleration-invariant* dS_s (integration by parts against the
     multiple integrals of a, the analogue of (4.1)):
@@ -47,7 +50,7 @@ exact-invariant
     ``w_k+1 = 4/T DT1 - 6/T^2 DT2``, ``w'_k+1 = 6/T^2 DT1 - 12/T^3 DT2``.
     Needs ``dtheta_r`` R >= 2 and ``dv_r`` R >= 4. Exact for *any* a(t) when omega is
     linear (so pure linear vibration costs nothing, the case the paper singles out);
-    local error O(DeltaT**6) for general motion.
+    local error of dS_s ``-T^5/720 (C_w x A_a) + O(T^6)`` for general motion.
 
 With ideal increments and no rotation dS_s = 0 and (5.2) is exact whatever DeltaT,
 whereas (5.1) and the trapezoid rule carry a methodical error that grows with DeltaT.
