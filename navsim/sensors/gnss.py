@@ -561,8 +561,14 @@ def satellite_states(
     ci, si = np.cos(c.inclination_rad), np.sin(c.inclination_rad)
     co, so = np.cos(node), np.sin(node)
     # columns of R3(-Omega) R1(-i) R3(-omega): perifocal P and Q axes in ECEF
-    p_axis = np.stack([co * cw - so * sw * ci, so * cw + co * sw * ci, np.broadcast_to(sw * si, co.shape)], axis=-1)
-    q_axis = np.stack([-co * sw - so * cw * ci, -so * sw + co * cw * ci, np.broadcast_to(cw * si, co.shape)], axis=-1)
+    p_axis = np.stack(
+        [co * cw - so * sw * ci, so * cw + co * sw * ci, np.broadcast_to(sw * si, co.shape)],
+        axis=-1,
+    )
+    q_axis = np.stack(
+        [-co * sw - so * cw * ci, -so * sw + co * cw * ci, np.broadcast_to(cw * si, co.shape)],
+        axis=-1,
+    )
     pos_e = x_pf[..., None] * p_axis + y_pf[..., None] * q_axis
     vel_e = vx_pf[..., None] * p_axis + vy_pf[..., None] * q_axis
     # d/dt of the node rotation: (Omega_dot - omega_ie) z x r
@@ -780,7 +786,7 @@ class GnssErrorModel:
         )
 
     def clock_allan_variance(self, tau) -> np.ndarray:
-        """Allan variance of the modelled clock, sigma_y^2(tau) = h0/(2 tau) + (2 pi^2/3) h_-2 tau."""
+        """Allan variance sigma_y^2(tau) = h0/(2 tau) + (2 pi^2/3) h_-2 tau of the clock."""
         tau = np.asarray(tau, dtype=float)
         return self.clock_h0 / (2.0 * tau) + 2.0 * np.pi**2 / 3.0 * self.clock_h_2 * tau
 
@@ -961,6 +967,8 @@ def simulate_epochs(
     else:
         visible = np.broadcast_to(np.asarray(visible, dtype=bool), (k, m))
     geo = geometry if geometry is not None else sky_geometry(t, position_e, constellation, earth)
+    if geo.range_m.shape != (k, m):
+        raise ConfigError("geometry", f"a SkyGeometry for ({k}, {m}) epochs x satellites", geo.range_m.shape)
 
     draws = rng.standard_normal((k, GnssErrorModel.draw_width(m)))
     z_clock, z_code = draws[:, :2], draws[:, 2 : 2 + m]
@@ -1180,7 +1188,8 @@ def velocity_fix(sat_pos_e, sat_vel_e, pseudorange_rate_mps, valid, position_e) 
     vel = np.asarray(sat_vel_e, dtype=float).reshape(sat.shape)
     k = sat.shape[0]
     position = np.broadcast_to(np.asarray(position_e, dtype=float).reshape(-1, 3), (k, 3))
-    valid = valid & np.all(np.isfinite(vel), axis=-1) & np.all(np.isfinite(position), axis=1)[:, None]
+    finite = np.all(np.isfinite(vel), axis=-1) & np.all(np.isfinite(position), axis=1)[:, None]
+    valid = valid & finite
     los = sat - position[:, None, :]
     dist = np.linalg.norm(los, axis=-1)
     dist = np.where(valid & (dist > 0.0), dist, 1.0)

@@ -128,7 +128,9 @@ class OutageModel:
             rows = _pairs(f"outages.{name}", getattr(self, name), 2)
             for start, end in rows:
                 if not start < end:
-                    raise ConfigError(f"outages.{name}", "start < end in every window", (start, end))
+                    raise ConfigError(
+                        f"outages.{name}", "start < end in every window", (start, end)
+                    )
             object.__setattr__(self, name, rows)
         if isinstance(self.tunnel_kinds, str):
             raise ConfigError("outages.tunnel_kinds", "a list of kind names", self.tunnel_kinds)
@@ -155,7 +157,9 @@ class OutageModel:
         try:
             prns = tuple(int(p) for p in self.masked_prns)
         except (TypeError, ValueError):
-            raise ConfigError("outages.masked_prns", "a list of integers", self.masked_prns) from None
+            raise ConfigError(
+                "outages.masked_prns", "a list of integers", self.masked_prns
+            ) from None
         object.__setattr__(self, "masked_prns", prns)
         for who in ("receiver", "satellite"):
             out = _nonneg(f"outages.{who}_mean_outage_s", getattr(self, f"{who}_mean_outage_s"))
@@ -246,19 +250,40 @@ def _markov(
     u: np.ndarray, dt: np.ndarray, initial: np.ndarray, mean_out: float, mean_avail: float,
     first: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Run two-state chains (columns of u) over the epochs; returns (k, n) states and last."""
-    k = u.shape[0]
-    states = np.zeros(u.shape, dtype=bool)
-    current = initial.copy()
-    if mean_out <= 0.0:
-        return states, np.zeros_like(current)
-    p_recover = np.minimum(1.0, dt / mean_out)
-    p_fail = np.minimum(1.0, dt / mean_avail)
-    for j in range(k):
-        if not (first and j == 0):
-            current = np.where(current, u[j] >= p_recover[j], u[j] < p_fail[j])
-        states[j] = current
-    return states, current
+    """Run two-state chains (columns of u, (k, n)) over the epochs.
+
+    Per epoch: an "out" chain stays out if u >= p_recover, an "available" one goes out
+    if u < p_fail. Vectorised without a Python loop: where both rules give the same next
+    state the epoch *resets* the chain to it; where they differ the next state is either
+    "keep" or "toggle", so the state is the last reset's value XOR the parity of toggles
+    since then (integer arithmetic, exact).
+
+    Returns the (k, n) states and the last state (n,).
+    """
+    k, n = u.shape
+    if mean_out <= 0.0 or k == 0:
+        off = np.zeros((k, n), dtype=bool)
+        return off, (np.zeros(n, dtype=bool) if mean_out <= 0.0 else initial.copy())
+    p_recover = np.minimum(1.0, dt / mean_out)[:, None]
+    p_fail = np.minimum(1.0, dt / mean_avail)[:, None]
+    stay_out = u >= p_recover  # next state if currently out
+    go_out = u < p_fail  # next state if currently available
+    reset = stay_out == go_out
+    toggle = ~stay_out & go_out
+    if first:  # the first epoch ever takes the initial (stationary) draw as it is
+        reset[0] = True
+        go_out = go_out.copy()
+        go_out[0] = initial
+        toggle[0] = False
+    index = np.arange(k)[:, None]
+    last_reset = np.maximum.accumulate(np.where(reset, index, -1), axis=0)
+    toggles = np.cumsum(toggle, axis=0)
+    column = np.arange(n)[None, :]
+    anchor = np.maximum(last_reset, 0)
+    anchor_value = np.where(last_reset >= 0, go_out[anchor, column], initial[None, :])
+    anchor_toggles = np.where(last_reset >= 0, toggles[anchor, column], 0)
+    states = anchor_value ^ ((toggles - anchor_toggles) % 2 == 1)
+    return states, states[-1].copy()
 
 
 def visibility(
@@ -307,7 +332,9 @@ def visibility(
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     k = t.size
-    elevation = np.asarray(elevation, dtype=float).reshape(k, -1)
+    elevation = np.asarray(elevation, dtype=float)
+    if elevation.ndim != 2 or elevation.shape[0] != k:
+        raise ConfigError("elevation", f"shape ({k}, m)", elevation.shape)
     m = elevation.shape[1]
     azimuth = np.asarray(azimuth, dtype=float).reshape(k, m)
     s = np.broadcast_to(np.asarray(s, dtype=float), (k,))
