@@ -8,7 +8,7 @@ error states in frozen state objects (chunk-invariant generation).
 
 from __future__ import annotations
 
-from . import gnss, outages
+from . import gnss, imu, outages
 from .gnss import (
     C_LIGHT,
     Constellation,
@@ -32,10 +32,9 @@ from .gnss import (
 )
 from .outages import OutageModel, OutageState, canyon_mask_elevation, visibility
 
-# from . import imu  # IMU module (navsim/sensors/imu.py), written separately
-
 __all__ = [
     "gnss",
+    "imu",
     "outages",
     "C_LIGHT",
     "Constellation",
