@@ -16,8 +16,9 @@ True multiple integrals
 :func:`multiple_integral_rule` gives Gauss-Legendre nodes and weights for all orders at
 once, so the simulator evaluates the true rate and specific force at ``n_nodes`` instants
 per sample and gets every ``dtheta_r`` to machine precision for smooth motion (exact for
-polynomials of degree ``<= 2 n_nodes - r``). :func:`compose_multiple_integrals` builds the
-multiple integrals over a step of ``m`` samples exactly from the per-sample ones, and
+polynomials of degree ``<= 2 n_nodes - r``; take ``n_nodes >= R + 2``, see the table
+there). :func:`compose_multiple_integrals` builds the multiple integrals over a step of
+``m`` samples exactly from the per-sample ones, and
 :func:`harmonic_multiple_integrals` is the closed form for ``A sin(2 pi f t + phase)``
 (vibration harmonics, tests).
 
@@ -27,18 +28,18 @@ Truth-side error model
 g-sensitivity) is applied by :func:`apply_imu_errors` in the increment domain, for every
 order r at once:
 
-=====================================  =================================================
-error                                  effect on the r-fold integral over one sample
-=====================================  =================================================
+======================================  ====================================================
+error                                   effect on the r-fold integral over one sample
+======================================  ====================================================
 scale factor ``S``, misalignment ``M``  ``(I + diag(S) + M) @ true_r`` (exact: linear)
-gyro g-sensitivity ``G``               ``+ G @ dv_r(true)`` (exact)
+gyro g-sensitivity ``G``                ``+ G @ dv_r(true)`` (exact)
 bias ``b`` (constant, turn-on,          ``+ b h^r / r!``; Gauss-Markov and rate-random-walk
-Gauss-Markov, rate random walk)        parts are held constant within a sample (below)
-vibration ``A sin(2 pi f t + phi)``    closed-form r-fold integral (exact)
-white noise of PSD ``q``               exact Gaussian vector of the R integrals, covariance
-                                       ``q h^(i+j-1) / ((i+j-1) (i-1)! (j-1)!)``
-quantization (LSB of ``dtheta_1``)     per output level, with residual carry (below)
-=====================================  =================================================
+Gauss-Markov, rate random walk)         parts are held constant within a sample (below)
+vibration ``A sin(2 pi f t + phi)``     closed-form r-fold integral (exact)
+white noise of PSD ``q``                exact Gaussian vector of the R integrals, covariance
+                                        ``q h^(i+j-1) / ((i+j-1) (i-1)! (j-1)!)``
+quantization (LSB of ``dtheta_1``)      per output level, with residual carry (below)
+======================================  ====================================================
 
 Approximations and choices, stated once:
 
@@ -460,7 +461,9 @@ class VibrationHarmonic:
         object.__setattr__(self, "amplitude", _vector3("vibration.amplitude", self.amplitude))
         freq = float(self.frequency_hz)
         if not (0.0 <= freq < math.inf):
-            raise ConfigError("vibration.frequency_hz", "a finite frequency >= 0", self.frequency_hz)
+            raise ConfigError(
+                "vibration.frequency_hz", "a finite frequency >= 0", self.frequency_hz
+            )
         phase = float(self.phase_rad)
         if not math.isfinite(phase):
             raise ConfigError("vibration.phase_rad", "a finite phase", self.phase_rad)
@@ -498,7 +501,9 @@ def _as_harmonic(value: Any) -> VibrationHarmonic:
     try:
         items = tuple(value)
     except TypeError:
-        raise ConfigError("vibration", "VibrationHarmonic or (amplitude, f_hz, phase)", value) from None
+        raise ConfigError(
+            "vibration", "VibrationHarmonic or (amplitude, f_hz, phase)", value
+        ) from None
     if len(items) not in (2, 3):
         raise ConfigError("vibration", "VibrationHarmonic or (amplitude, f_hz, phase)", value)
     return VibrationHarmonic(*items)
@@ -551,13 +556,11 @@ class SensorErrors:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         set_(self, "bias", _vector3("bias", self.bias))
-        set_(self, "turn_on_bias_sigma", _vector3("turn_on_bias_sigma", self.turn_on_bias_sigma, nonneg=True))
-        set_(self, "bias_instability_sigma",
-             _vector3("bias_instability_sigma", self.bias_instability_sigma, nonneg=True))
+        for name in ("turn_on_bias_sigma", "bias_instability_sigma", "white_noise_density",
+                     "rate_random_walk"):
+            set_(self, name, _vector3(name, getattr(self, name), nonneg=True))
         set_(self, "bias_correlation_time_s",
              _vector3("bias_correlation_time_s", self.bias_correlation_time_s, positive=True))
-        set_(self, "white_noise_density", _vector3("white_noise_density", self.white_noise_density, nonneg=True))
-        set_(self, "rate_random_walk", _vector3("rate_random_walk", self.rate_random_walk, nonneg=True))
         set_(self, "scale_factor", _vector3("scale_factor", self.scale_factor))
         set_(self, "misalignment", _matrix3("misalignment", self.misalignment, zero_diagonal=True))
         try:
@@ -699,7 +702,8 @@ class ImuState:
     quant_count: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sample_index", _check_int("state.sample_index", self.sample_index, 0))
+        index = _check_int("state.sample_index", self.sample_index, 0)
+        object.__setattr__(self, "sample_index", index)
         shapes = {
             "turn_on_bias": (2, 3),
             "bias_gauss_markov": (2, 3),
@@ -728,7 +732,9 @@ class ImuState:
         zeros_q = np.zeros((2, MAX_ORDER + 1, 3))
         return cls(0, turn_on, gauss_markov, np.zeros((2, 3)), zeros_q, zeros_q)
 
-    def quantization_residual(self, model: ImuErrorModel, h: float, order: int) -> NDArray[np.float64]:
+    def quantization_residual(
+        self, model: ImuErrorModel, h: float, order: int
+    ) -> NDArray[np.float64]:
         """Residual carry (unquantized minus quantized running sum), shape (2, R + 1, 3).
 
         Rows 0..R-1 are the integral orders, row R the rate output; zero where the
@@ -781,7 +787,9 @@ class ImuOutput:
 
 def _mat3_apply(mat: NDArray, vec: NDArray) -> NDArray:
     """``mat @ vec`` over the last axis of ``vec`` (..., 3), without tiny-matrix BLAS calls."""
-    return vec[..., 0, None] * mat[:, 0] + vec[..., 1, None] * mat[:, 1] + vec[..., 2, None] * mat[:, 2]
+    return (
+        vec[..., 0, None] * mat[:, 0] + vec[..., 1, None] * mat[:, 1] + vec[..., 2, None] * mat[:, 2]
+    )
 
 
 def _level_lsb(model: ImuErrorModel, h: float, order: int) -> NDArray[np.float64]:
@@ -949,7 +957,9 @@ def apply_imu_errors(
 
         # Vibration harmonics: closed-form multiple integrals (seed 000, section 6).
         for harm in sensor.vibration:
-            integrals = harmonic_multiple_integrals(1.0, harm.frequency_hz, harm.phase_rad, t_start, h, order)
+            integrals = harmonic_multiple_integrals(
+                1.0, harm.frequency_hz, harm.phase_rad, t_start, h, order
+            )
             out += integrals[:, :, None] * harm.amplitude[None, None, :]
             wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
             rate += wave[:, None] * harm.amplitude[None, :]
@@ -1076,7 +1086,9 @@ def imu_preset(name: str) -> ImuErrorModel:
                 misalignment=ma,
                 quantization_lsb=1.0e-1 * _GROVES_DT,
             ),
-            g_sensitivity=np.array([[90.0, -110.0, -60.0], [-50.0, 190.0, -160.0], [30.0, 110.0, -130.0]])
+            g_sensitivity=np.array(
+                [[90.0, -110.0, -60.0], [-50.0, 190.0, -160.0], [30.0, 110.0, -130.0]]
+            )
             * _DEG_PER_HOUR_PER_G,
             name="consumer-mems",
         )
