@@ -94,6 +94,7 @@ __all__ = [
     "fit_leading",
     "general_motion",
     "local_errors",
+    "local_error_fit",
     "position_errors",
     "pseudo_sculling_error",
     "pseudo_coning_drift",
@@ -302,23 +303,30 @@ def local_errors(kind: str, name: str, steps=_STEPS, motion: Motion | None = Non
     return np.array(out)
 
 
+def local_error_fit(ref: str, kind: str, name: str, order: int, motion: Motion | None = None) -> dict:
+    """Local error of one algorithm on :func:`general_motion` against a printed expression.
+
+    Returns a dict with ``steps``, ``norms`` (|alg - exact|), ``slope`` (log-log over
+    the three smallest steps) and ``ratio``: the projection of the measured error
+    (alg - exact) on the printed expression, divided by the printed expression,
+    extrapolated linearly to DeltaT -> 0 from the two smallest steps.
+    """
+    motion = general_motion() if motion is None else motion
+    t0 = np.array([0.37])
+    steps = _STEPS_HIGH if order == 7 else _STEPS
+    errors = local_errors(kind, name, steps, motion)
+    norms = np.linalg.norm(errors, axis=1)
+    slope = float(np.polyfit(np.log(steps[-3:]), np.log(norms[-3:]), 1)[0])
+    printed = np.array([_printed_local_error(ref, motion, t0, dt)[0] for dt in steps])
+    ratio = np.einsum("ij,ij->i", errors, printed) / np.einsum("ij,ij->i", printed, printed)
+    ratio0 = float(ratio[-1] + (ratio[-1] - ratio[-2]) * steps[-1] / (steps[-2] - steps[-1]))
+    return {"ref": ref, "kind": kind, "name": name, "order": order, "slope": slope, "ratio": ratio0,
+            "steps": steps, "norms": norms}
+
+
 def _local_error_study() -> list[dict]:
     motion = general_motion()
-    t0 = np.array([0.37])
-    results = []
-    for ref, kind, name, order in LOCAL_ERROR_CASES:
-        steps = _STEPS_HIGH if order == 7 else _STEPS
-        errors = local_errors(kind, name, steps, motion)
-        norms = np.linalg.norm(errors, axis=1)
-        slope = float(np.polyfit(np.log(steps[-3:]), np.log(norms[-3:]), 1)[0])
-        printed = np.array([_printed_local_error(ref, motion, t0, dt)[0] for dt in steps])
-        ratio = np.einsum("ij,ij->i", errors, printed) / np.einsum("ij,ij->i", printed, printed)
-        # linear extrapolation of the ratio to DeltaT -> 0 from the two smallest steps
-        ratio0 = float(ratio[-1] + (ratio[-1] - ratio[-2]) * steps[-1] / (steps[-2] - steps[-1]))
-        results.append(
-            {"ref": ref, "kind": kind, "name": name, "order": order, "slope": slope, "ratio": ratio0,
-             "steps": steps, "norms": norms}
-        )
+    results = [local_error_fit(ref, kind, name, order, motion) for ref, kind, name, order in LOCAL_ERROR_CASES]
     steps = _STEPS
     for name in ("exact", "exact-smoothing", "exact-invariant"):
         errors = local_errors("position", name, steps, motion)

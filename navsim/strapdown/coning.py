@@ -48,9 +48,11 @@ Corrections of the printed text (checked numerically in tests/strapdown/test_con
   ``int DeltaTheta x omega dt`` = 2 deltaTheta_c. (4.8) does include the 1/2.
 * (4.8): the last term is printed with ``30/DeltaT**2``; dimensional analysis
   (DeltaTheta^4 is in rad*s**3) and the derivation from (4.3) and (3.4) give
-  ``30/DeltaT**3``. With ``/DeltaT**2`` the algorithm is not even exact for a constant
-  rate; with ``/DeltaT**3`` it is exact for every quadratic omega(t), as a quadratic-model
-  algorithm must be.
+  ``30/DeltaT**3``. The bracket it multiplies is C_hat T^3/60, zero for linear omega, so
+  the typo shows only for a quadratic rate: with ``/DeltaT**2`` the algorithm is not
+  exact for quadratic omega(t) and its result depends on the unit of time; with
+  ``/DeltaT**3`` it is exact for every quadratic omega(t), as a quadratic-model algorithm
+  must be, and reproduces (4.13) and (4.14).
 
 References
 ----------
