@@ -1200,12 +1200,11 @@ def fit_polynomial_track(
             raise TrackError(f"{name}: cannot refine the fit further (too few points per piece); "
                              f"best max error {err.max():.3g} m")
         inner.extend(new)
-    pp = PPoly.from_spline(spl)
-    lam_pp = PPoly(pp.c[..., 0], pp.x)
-    h_pp = PPoly(pp.c[..., 1], pp.x)
-    # drop the repeated end knots (zero-length pieces)
-    keep = np.diff(pp.x) > 0
-    xs = np.concatenate([pp.x[:-1][keep], [pp.x[-1]]])
+    lam_pp = PPoly.from_spline(BSpline(spl.t, spl.c[:, 0], k))
+    h_pp = PPoly.from_spline(BSpline(spl.t, spl.c[:, 1], k))
+    # drop the zero-length pieces of the repeated end knots
+    keep = np.diff(lam_pp.x) > 0
+    xs = np.concatenate([lam_pp.x[:-1][keep], [lam_pp.x[-1]]])
     lam_pp = PPoly(lam_pp.c[:, keep], xs)
     h_pp = PPoly(h_pp.c[:, keep], xs)
     track = PiecewisePolynomialTrack(lam_pp, h_pp, phi_start, phi_end, lam0=lam0, earth=earth, name=name)
