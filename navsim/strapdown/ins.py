@@ -276,6 +276,15 @@ def _lookup(kind: str, method: Method) -> Callable:
         raise ConfigError(kind, f"a callable or one of {sorted(registry)}", method) from None
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) arrays (np.cross costs ~50 us per call on small arrays)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position):
     """Vectorised body-frame terms for all steps: q(Phi) (n, 4), dV_b (n, 3), dS_b or None."""
     coning, sculling, position = resolve_methods(coning, sculling, position, dtheta_sub, dv_sub, dtheta_r, dv_r)
@@ -289,12 +298,13 @@ def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, positi
         eye = np.broadcast_to(np.eye(3), (n, 3, 3))
         # with V = 0 and C = I the registry returns the body-frame double integral
         # DeltaV^2 + deltaS_s of (5.2)-(5.4)
-        ds_b = np.asarray(_lookup("position", position)(zeros, eye, dtheta_sub, dv_sub, dtheta_r, dv_r, dt), dtype=float)
+        position_fn = _lookup("position", position)
+        ds_b = np.asarray(position_fn(zeros, eye, dtheta_sub, dv_sub, dtheta_r, dv_r, dt), dtype=float)
     # second-order rotation terms that (1.6)-(1.8) and (5.3)-(5.4) neglect:
     # 1/2 int DeltaTheta x (DeltaTheta x a) dt = 1/6 Phi x (Phi x DV) for constant omega, a,
     # and its double integral 1/24 dt Phi x (Phi x DV)
     dv_raw = np.sum(dv_sub, axis=1) if dv_sub is not None else np.asarray(dv_r, dtype=float)[:, 0]
-    second = np.cross(phi, np.cross(phi, dv_raw))
+    second = _cross(phi, _cross(phi, dv_raw))
     dv_b = dv_b + second / 6.0
     if ds_b is not None:
         ds_b = ds_b + (dt / 24.0) * second
