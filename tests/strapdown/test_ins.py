@@ -222,6 +222,8 @@ def test_resolve_methods_picks_the_richest_inputs():
     assert resolve_methods(None, None, None, None, None, r4, r4) == ("invariant", "invariant-4.4", "exact-invariant")
     assert resolve_methods(None, None, None, sub, sub) == ("two-sample", "two-sample", "trapezoid")
     assert resolve_methods("one-sample", None, "rectangle", sub, sub)[::2] == ("one-sample", "rectangle")
+    one = np.zeros((n, 1, 3))
+    assert resolve_methods(None, None, None, one, one) == ("one-sample", "first-order", "trapezoid")
 
 
 def test_bad_inputs_raise_config_errors():
