@@ -24,9 +24,10 @@ Each track is first a curve X(u) = [lat, lon, h](u) in some convenient parameter
 sigma(u) = ds/du = |[(R_N + h) lat', (R_E + h) cos(lat) lon', h']| is integrated by
 composite 8-point Gauss-Legendre quadrature on a fine table of u; the inverse u(s) starts
 from a quintic Hermite interpolant of that table (it uses du/ds = 1/sigma and
-d2u/ds2 = -sigma'/sigma^3 at the nodes) and is refined by two Newton steps on the exact
-integral, so ``geodetic(s)`` is exact to rounding (|s(u(s)) - s| ~ 1e-11 m on a 40 km
-track). The derivatives with respect to s follow by the chain rule::
+d2u/ds2 = -sigma'/sigma^3 at the nodes), already within ~1e-11 m on the bundled tracks,
+and is refined by one Newton step on the exact integral (quadratic convergence), so
+``geodetic(s)`` is exact to rounding (|s(u(s)) - s| < 4e-12 m on the 35 km mountain
+railway). The derivatives with respect to s follow by the chain rule::
 
     d1 = X' / sigma,    d2 = X'' / sigma^2 - X' sigma' / sigma^3
 

@@ -56,7 +56,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .earth import SPHERICAL, WGS84, EarthModel, earth_model
+from .earth import EarthModel, earth_model
 from .errors import ConfigError, TrackError
 from .track import CantModel, PolynomialTrack, SplineTrack, TrackSegment
 

@@ -38,7 +38,6 @@ the designed profile. Segment arc lengths are 3-D arc lengths, s = int sqrt(1 + 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
