@@ -1,7 +1,8 @@
 """Scenarios: frozen, typed configuration that round-trips to TOML.
 
 A scenario is track + motion + IMU + GNSS + outages + duration + rates + initial
-uncertainty. Bundled scenarios live in ``navsim/scenarios/*.toml``; :func:`load_scenario`
+uncertainty. The ``[outages]`` table holds the fields of
+:class:`navsim.sensors.outages.OutageModel` directly. Bundled scenarios live in ``navsim/scenarios/*.toml``; :func:`load_scenario`
 takes a bundled name or a path. Every value is checked when the scenario is built, and a
 bad one raises :class:`~navsim.errors.ConfigError` naming the field (dotted path), the
 expectation and the value: unknown keys, wrong types, negative or non-multiple rates,
@@ -35,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, check_multiple, check_positive
+from .sensors.outages import OutageModel
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -49,7 +51,6 @@ __all__ = [
     "MotionConfig",
     "ImuConfig",
     "GnssConfig",
-    "OutageConfig",
     "InitialUncertainty",
     "Scenario",
     "load_scenario",
@@ -228,25 +229,6 @@ class GnssConfig:
 
 
 @dataclass(frozen=True, slots=True)
-class OutageConfig:
-    """GNSS outages: scheduled windows, track segments, sky masks, random on/off.
-
-    ``windows_s``: [[start, end], ...] seconds. ``segment_kinds``: track segment kinds
-    in which signals are lost ("tunnel") or masked ("cutting", "urban").
-    ``options``: further fields of the outage model (sky masks, Markov chain).
-    """
-
-    windows_s: tuple[tuple[float, float], ...] = ()
-    segment_kinds: tuple[str, ...] = ()
-    options: dict = field(default_factory=dict)
-
-    def __post_init__(self):
-        for i, window in enumerate(self.windows_s):
-            if len(window) != 2 or not (0 <= window[0] < window[1]):
-                raise ConfigError(f"outages.windows_s[{i}]", "[start, end] with 0 <= start < end", list(window))
-
-
-@dataclass(frozen=True, slots=True)
 class InitialUncertainty:
     """1-sigma of the initial estimate handed to estimators (per axis).
 
@@ -276,7 +258,7 @@ class Scenario:
     motion: MotionConfig = MotionConfig()
     imu: ImuConfig = ImuConfig()
     gnss: GnssConfig = GnssConfig()
-    outages: OutageConfig = OutageConfig()
+    outages: OutageModel = OutageModel()
     initial: InitialUncertainty = InitialUncertainty()
     base_dir: str = ""  # folder that relative file names refer to (not serialised)
 
@@ -351,7 +333,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 def _deep_merge(base: dict, overrides: dict) -> dict:
     merged = dict(base)
     for key, value in overrides.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict) and key not in ("gyro", "accel", "overrides", "options"):
+        if isinstance(value, dict) and isinstance(merged.get(key), dict) and key not in ("gyro", "accel", "overrides"):
             merged[key] = _deep_merge(merged[key], value)
         else:
             merged[key] = value

@@ -46,10 +46,10 @@ from .motion import (
     Station,
     Timetable,
     TrueState,
-    body_kinematics,
     true_state,
 )
 from .scenario import Scenario
+from .truthgen import TruthGenerator
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import outages as outage_mod
@@ -165,9 +165,8 @@ def build_track(scenario: Scenario):
     else:
         track = track_mod.load_track_file(scenario.resolve_path(cfg.file), earth=earth, smoothing_m=cfg.smoothing_m)
     if cfg.cant != "track":
-        track = track_mod.with_cant(
-            track, mode=cfg.cant, design_speed=cfg.cant_design_speed_mps, max_cant=math.radians(cfg.cant_max_deg)
-        )
+        track = track.with_cant_model(track_mod.CantModel(
+            mode=cfg.cant, design_speed_mps=cfg.cant_design_speed_mps, max_cant=math.radians(cfg.cant_max_deg)))
     return track
 
 
@@ -227,24 +226,13 @@ def build_gnss(scenario: Scenario, earth):
     if cfg.constellation.startswith("yuma:"):
         constellation = gnss_mod.load_yuma(scenario.resolve_path(cfg.constellation[5:]))
     elif cfg.constellation in ("gps", "glonass"):
-        constellation = gnss_mod.walker_constellation(cfg.constellation, phase=math.radians(cfg.epoch_phase_deg))
+        constellation = gnss_mod.walker_constellation(cfg.constellation, phase_rad=math.radians(cfg.epoch_phase_deg))
     else:
         raise ConfigError("gnss.constellation", "'gps', 'glonass' or 'yuma:<file>'", cfg.constellation)
-    model = gnss_mod.gnss_preset(cfg.preset)
+    model = gnss_mod.GnssErrorModel.preset(cfg.preset)
     if cfg.overrides:
         model = _replace_checked(model, cfg.overrides, "gnss.overrides")
     return constellation, model
-
-
-def build_outage_model(scenario: Scenario):
-    cfg = scenario.outages
-    kwargs = dict(cfg.options)
-    kwargs["windows"] = tuple(tuple(w) for w in cfg.windows_s)
-    kwargs["segment_kinds"] = tuple(cfg.segment_kinds)
-    try:
-        return outage_mod.OutageModel(**kwargs)
-    except TypeError as exc:
-        raise ConfigError("outages.options", "fields of OutageModel", f"{cfg.options} ({exc})") from None
 
 
 # ============================================================================ simulator
@@ -265,9 +253,12 @@ class Simulator:
         self.profile = build_profile(scenario)
         self.oscillations = _oscillations(scenario)
         self.imu_model = build_imu_model(scenario)
+        self._imu_error_free = imu_mod.is_error_free(self.imu_model)
         self.constellation, self.gnss_model = build_gnss(scenario, self.earth)
-        self.outage_model = build_outage_model(scenario)
-        self._nodes, self._weights = imu_mod.multiple_integral_rule(scenario.imu.quadrature_nodes, scenario.imu.orders)
+        self.outage_model = scenario.outages
+        self.truthgen = TruthGenerator(
+            self.track, self.profile, self.oscillations, self.timing.imu_period_s, scenario.imu.orders,
+            scenario.imu.quadrature_nodes, t_end=self.timing.duration_s)
         self._check_motion_fits_track()
         self._step = None
 
@@ -313,6 +304,7 @@ class Simulator:
         if isinstance(self.profile, ExternalMotion):
             m = self.scenario.motion
             self.profile.reset(0.0, m.start_s_m, m.speed_mps, 0.0)
+        self.truthgen._cache.clear()
         self.imu_state = imu_mod.ImuState.initial(self.imu_model, self.rngs["imu"])
         self.gnss_state = gnss_mod.GnssState.initial(self.gnss_model, self.constellation, self.rngs["gnss"])
         self.outage_state = outage_mod.OutageState.initial(self.outage_model, len(self.constellation.prn), self.rngs["outages"])
@@ -366,21 +358,17 @@ class Simulator:
         sample_index = k0 * m + np.arange(n * m)
         t_start = sample_index * h
         t_end_steps = (steps + 1) * dt
-        # --- truth at step ends, IMU truth at quadrature nodes
-        truth = self.truth_at(t_end_steps)
-        t_nodes = t_start[:, None] + self._nodes[None, :] * h
-        omega_nodes, force_nodes = body_kinematics(self.track, self.profile, t_nodes, self.oscillations)
-        powers = h ** np.arange(1, self._weights.shape[0] + 1)
-        # (1.14): r-fold integral = h^r sum_j w[r-1, j] g(t_k + tau_j h)
-        dtheta_true = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, omega_nodes)
-        dv_true = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, force_nodes)
-        if m == 1:
-            omega_end, force_end = truth.omega_ib_b, truth.specific_force_b
+        # --- ideal IMU increments and truth at sample ends (block Chebyshev or direct)
+        ideal = self.truthgen.samples(k0 * m, n * m)
+        truth = ideal.truth if m == 1 else _every(ideal.truth, m)
+        dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
+        omega_end, force_end = ideal.omega_end, ideal.force_end
+        if self._imu_error_free:
+            out = imu_mod.ImuOutput(dtheta_true, dv_true, omega_end, force_end)
         else:
-            omega_end, force_end = body_kinematics(self.track, self.profile, t_start + h, self.oscillations)
-        out, self.imu_state = imu_mod.apply_imu_errors(
-            t_start, h, dtheta_true, dv_true, omega_end, force_end, self.imu_model, self.imu_state, self.rngs["imu"]
-        )
+            out, self.imu_state = imu_mod.apply_imu_errors(
+                t_start, h, dtheta_true, dv_true, omega_end, force_end, self.imu_model, self.imu_state,
+                self.rngs["imu"])
         R = dtheta_true.shape[1]
         dtheta_sample = out.dtheta_r.reshape(n, m, R, 3)
         dv_sample = out.dv_r.reshape(n, m, R, 3)
@@ -405,6 +393,7 @@ class Simulator:
             visible, receiver_outage, self.outage_state = outage_mod.visibility(
                 t_end_steps[idx], truth.s[idx], truth.heading[idx], gnss_epochs.elevation, gnss_epochs.azimuth,
                 self.track.segments, self.outage_model, self.outage_state, self.rngs["outages"],
+                prn=self.constellation.prn,
             )
             gnss_epochs = dataclasses.replace(gnss_epochs, valid=gnss_epochs.valid & visible)
         self._step += n
@@ -421,6 +410,11 @@ class Simulator:
         """Reset and generate a whole episode; returns the start and the list of chunks."""
         start = self.reset(seed)
         return start, list(self.chunks(chunk_steps))
+
+
+def _every(truth: TrueState, m: int) -> TrueState:
+    """The states at every m-th sample end (the navigation step ends)."""
+    return TrueState(**{f: getattr(truth, f)[m - 1::m] for f in TrueState.__dataclass_fields__})
 
 
 def concat_chunks(chunks: list[Chunk]) -> dict[str, np.ndarray]:

@@ -112,6 +112,7 @@ from scipy.signal import lfilter
 from ..errors import ConfigError
 
 __all__ = [
+    "is_error_free",
     "MAX_ORDER",
     "QUANTIZATION_BLOCK",
     "PRESET_NAMES",
@@ -1004,6 +1005,22 @@ def apply_imu_errors(
 # --------------------------------------------------------------------------------------
 # Presets and the nominal specification
 # --------------------------------------------------------------------------------------
+
+def is_error_free(model: ImuErrorModel) -> bool:
+    """True if the model adds no error at all (its output equals the true increments).
+
+    The simulator then skips :func:`apply_imu_errors` and draws nothing from the IMU
+    stream; no other stream is affected, so this changes no other number.
+    """
+    for sensor in (model.gyro, model.accel):
+        for name in ("bias", "turn_on_bias_sigma", "bias_instability_sigma", "white_noise_density",
+                     "rate_random_walk", "scale_factor", "misalignment"):
+            if np.any(getattr(sensor, name)):
+                return False
+        if sensor.quantization_lsb or sensor.vibration:
+            return False
+    return not np.any(model.g_sensitivity)
+
 
 PRESET_NAMES = ("ideal", "paper-2012", "consumer-mems", "tactical", "navigation")
 
