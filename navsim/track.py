@@ -425,12 +425,25 @@ class _ArcLengthTrack:
         """
         s = self._check_s(s)
         u = self._u_of_s(s)
-        x = self._curve(u, 2)
+        return self._geodetic_at(self._curve(u, 2))
+
+    def _geodetic_at(self, x: list[np.ndarray]):
         sig, dsig = self._sigma(x, with_derivative=True)
         inv = (1.0 / sig)[..., None]
         d1 = x[1] * inv
         d2 = x[2] * inv * inv - x[1] * (dsig / sig**3)[..., None]
         return x[0], d1, d2
+
+    def _geodetic_and_cant(self, s: ArrayLike):
+        """geodetic(s) and cant(s) sharing one inversion u(s) (used by track_frame)."""
+        s = self._check_s(s)
+        u = self._u_of_s(s)
+        if self.cant_model.mode == "none":
+            pos, d1, d2 = self._geodetic_at(self._curve(u, 2))
+            return pos, d1, d2, np.zeros_like(s), np.zeros_like(s)
+        x = self._curve(u, 3)
+        pos, d1, d2 = self._geodetic_at(x)
+        return (pos, d1, d2) + self.cant_model.evaluate(*self._plan_curvature_at(x))
 
     def cant(self, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Cant (rad, right side down positive) and d cant / ds (rad/m) at arc lengths s."""
@@ -447,8 +460,9 @@ class _ArcLengthTrack:
         docstring); this is the curvature the design cant uses.
         """
         s = self._check_s(s)
-        u = self._u_of_s(s)
-        x = self._curve(u, 3)
+        return self._plan_curvature_at(self._curve(self._u_of_s(s), 3))
+
+    def _plan_curvature_at(self, x: list[np.ndarray]):
         sig = self._sigma(x)
         c_n, c_e = self._plan_scale
         lat = x[0][..., 0]
@@ -972,8 +986,11 @@ def track_frame(track: Track, s: ArrayLike) -> TrackFrame:
     See :class:`TrackFrame` for the definitions; everything is analytic in the track's
     first and second derivatives.
     """
-    pos, d1, d2 = track.geodetic(s)
-    cant, dcant = track.cant(s)
+    if isinstance(track, _ArcLengthTrack):
+        pos, d1, d2, cant, dcant = track._geodetic_and_cant(s)
+    else:
+        pos, d1, d2 = track.geodetic(s)
+        cant, dcant = track.cant(s)
     earth = track.earth
     lat, lon, h = pos[..., 0], pos[..., 1], pos[..., 2]
     lat1, lon1, h1 = d1[..., 0], d1[..., 1], d1[..., 2]
