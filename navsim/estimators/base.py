@@ -1,0 +1,190 @@
+"""The estimator interface: what an estimator may know, what it receives, what it returns.
+
+An estimator is any object with two methods (no navsim base class needed)::
+
+    class MyEstimator:
+        def reset(self, context: Context, prior: Prior) -> None: ...
+        def step(self, measurement: Measurement) -> Estimate: ...
+
+``reset`` hands over what the estimator may know: the track model (the map), the
+Earth model, the time base and the *nominal* sensor specification (never the
+simulator's actual error draws), and the prior (initial estimate and covariance drawn
+by the simulator from the scenario's initial uncertainty). ``step`` is called once per
+navigation step with the IMU data of that step and, at GNSS epochs, the GNSS channels;
+it returns the navigation solution at the end of the step. Truth is never passed in.
+
+Frames and units follow the package conventions (:mod:`navsim`): geodetic latitude,
+longitude (rad) and height (m); ENU velocity (m/s); heading, pitch, roll (rad) of the
+body (x right, y forward, z up) relative to ENU.
+
+The covariance of an :class:`Estimate` is 9 x 9 over the error vector
+``[dE, dN, dU (m), dvE, dvN, dvU (m/s), psi_E, psi_N, psi_U (rad)]`` where
+``psi`` is the small rotation of the estimated attitude relative to the true one about
+the ENU axes (``mat_nb_est = (I + [psi x]) mat_nb_true``). Estimators that do not
+estimate some components (e.g. GNSS only: no attitude) put ``nan`` on those diagonal
+entries; metrics then skip them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = [
+    "NominalImu",
+    "NominalGnss",
+    "Context",
+    "GnssObservation",
+    "Measurement",
+    "Estimate",
+    "Estimator",
+    "STATE_LABELS",
+]
+
+STATE_LABELS = ("dE", "dN", "dU", "dvE", "dvN", "dvU", "psiE", "psiN", "psiU")
+
+
+@dataclass(frozen=True, slots=True)
+class NominalImu:
+    """The IMU specification an estimator is told (datasheet values, 1-sigma).
+
+    gyro_arw : rad/sqrt(s). accel_vrw : m/s/sqrt(s). gyro_bias_sigma : rad/s and
+    accel_bias_sigma : m/s^2 (turn-on plus instability). gyro_bias_tau_s,
+    accel_bias_tau_s : correlation times of the bias instability, s. gyro_rrw :
+    rad/s/sqrt(s), accel_rrw : m/s^2/sqrt(s).
+    """
+
+    gyro_arw: float = 0.0
+    accel_vrw: float = 0.0
+    gyro_bias_sigma: float = 0.0
+    accel_bias_sigma: float = 0.0
+    gyro_bias_tau_s: float = 3600.0
+    accel_bias_tau_s: float = 3600.0
+    gyro_rrw: float = 0.0
+    accel_rrw: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class NominalGnss:
+    """The GNSS receiver specification an estimator is told (1-sigma).
+
+    pseudorange_sigma_m, doppler_sigma_mps : measurement noise. clock_modelled : True
+    when the receiver clock error is present in the measurements (False: the paper's
+    case, clock error compensated). clock_bias_sigma_m, clock_drift_sigma_mps : initial
+    uncertainty; clock_phase_psd, clock_freq_psd : two-state clock model PSDs
+    (m^2/s and m^2/s^3).
+    """
+
+    pseudorange_sigma_m: float = 15.0
+    doppler_sigma_mps: float = 0.5
+    clock_modelled: bool = False
+    clock_bias_sigma_m: float = 0.0
+    clock_drift_sigma_mps: float = 0.0
+    clock_phase_psd: float = 0.0
+    clock_freq_psd: float = 0.0
+
+
+@dataclass(frozen=True)
+class Context:
+    """Everything an estimator may know before the episode starts.
+
+    Attributes
+    ----------
+    track : the track model (the map), see :mod:`navsim.track`.
+    earth : :class:`navsim.earth.EarthModel` of the scenario.
+    nav_period_s, imu_period_s, gnss_period_s : the time base, s.
+    samples_per_step : IMU samples per navigation step.
+    orders : multiple-integral orders R in each measurement.
+    imu : NominalImu. gnss : NominalGnss.
+    scenario_name : str. config_hash : str, for logs.
+    """
+
+    track: object
+    earth: object
+    nav_period_s: float
+    imu_period_s: float
+    gnss_period_s: float
+    samples_per_step: int
+    orders: int
+    imu: NominalImu
+    gnss: NominalGnss
+    scenario_name: str = ""
+    config_hash: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class GnssObservation:
+    """One GNSS epoch: per-channel arrays with a validity mask (m channels).
+
+    Missing data is a value: a satellite below the mask or in an outage has
+    ``valid == False`` (its other entries are finite but meaningless).
+    """
+
+    t: float
+    prn: np.ndarray  # (m,) int
+    sat_pos_e: np.ndarray  # (m, 3) ECEF, m
+    sat_vel_e: np.ndarray  # (m, 3) ECEF, m/s
+    pseudorange_m: np.ndarray  # (m,)
+    pseudorange_rate_mps: np.ndarray  # (m,) Doppler as pseudorange rate, 003 eq. (3)
+    valid: np.ndarray  # (m,) bool
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """Sensor data of one navigation step ``[t - dt, t]``.
+
+    dtheta_r, dv_r : (R, 3) multiple-integral increments over the step (seed 000 eq.
+    1.14). dtheta_sub, dv_sub : (m, 3) first-order increments of the m IMU samples in the
+    step. gnss : the epoch at the step end, or None when no epoch falls there.
+    """
+
+    step: int
+    t: float
+    dt: float
+    dtheta_r: np.ndarray
+    dv_r: np.ndarray
+    dtheta_sub: np.ndarray
+    dv_sub: np.ndarray
+    gnss: GnssObservation | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    """A navigation solution at time t, with an optional 9 x 9 covariance (see module).
+
+    nis, nis_dof : normalised innovation squared of a measurement update made in this
+    step, and its degrees of freedom (None when no update happened).
+    extra : free-form per-step diagnostics (e.g. bias estimates).
+    """
+
+    t: float
+    lat: float
+    lon: float
+    h: float
+    velocity_n: np.ndarray
+    heading: float
+    pitch: float
+    roll: float
+    covariance: np.ndarray | None = None
+    nis: float | None = None
+    nis_dof: int | None = None
+    extra: dict = field(default_factory=dict)
+
+    def as_action(self) -> np.ndarray:
+        """The solution as a flat float array: [lat, lon, h, vE, vN, vU, heading, pitch, roll]."""
+        return np.array([self.lat, self.lon, self.h, *self.velocity_n, self.heading, self.pitch, self.roll])
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """What navsim requires of an estimator (structural: no subclassing needed)."""
+
+    def reset(self, context: Context, prior) -> None:
+        """Start an episode. ``prior`` is a :class:`navsim.simulator.Prior`."""
+        ...
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """Process one navigation step and return the solution at its end."""
+        ...
