@@ -1,6 +1,7 @@
 """The estimator interface: what an estimator may know, what it receives, what it returns.
 
-An estimator is any object with two methods (no navsim base class needed)::
+An estimator is any object with two methods (no navsim base class needed); it may add a
+batch fast path ``step_batch`` (see :class:`MeasurementBatch`)::
 
     class MyEstimator:
         def reset(self, context: Context, prior: Prior) -> None: ...
@@ -40,6 +41,8 @@ __all__ = [
     "Measurement",
     "Estimate",
     "Estimator",
+    "MeasurementBatch",
+    "EstimateBatch",
     "STATE_LABELS",
 ]
 
@@ -177,6 +180,45 @@ class Estimate:
         return np.array([self.lat, self.lon, self.h, *self.velocity_n, self.heading, self.pitch, self.roll])
 
 
+@dataclass(frozen=True, slots=True)
+class MeasurementBatch:
+    """n consecutive navigation steps at once (for estimators with a batch fast path).
+
+    Arrays are those of :class:`Measurement` with a leading step axis: step, t (n,);
+    dtheta_r, dv_r (n, R, 3); dtheta_sub, dv_sub (n, m, 3). ``gnss`` lists the epochs
+    as ``(index_in_batch, GnssObservation)`` pairs, in time order.
+    """
+
+    step: np.ndarray
+    t: np.ndarray
+    dt: float
+    dtheta_r: np.ndarray
+    dv_r: np.ndarray
+    dtheta_sub: np.ndarray
+    dv_sub: np.ndarray
+    gnss: tuple
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def measurement(self, i: int) -> Measurement:
+        """The i-th step as a :class:`Measurement`."""
+        epoch = next((obs for j, obs in self.gnss if j == i), None)
+        return Measurement(int(self.step[i]), float(self.t[i]), self.dt, self.dtheta_r[i], self.dv_r[i],
+                           self.dtheta_sub[i], self.dv_sub[i], epoch)
+
+
+@dataclass(frozen=True, slots=True)
+class EstimateBatch:
+    """Solutions of n steps: ``solution`` (n, 9) rows as :meth:`Estimate.as_action`,
+    ``covariance`` (n, 9, 9) or None, ``nis`` (n,) with nan where no update, ``nis_dof`` (n,)."""
+
+    solution: np.ndarray
+    covariance: np.ndarray | None
+    nis: np.ndarray
+    nis_dof: np.ndarray
+
+
 @runtime_checkable
 class Estimator(Protocol):
     """What navsim requires of an estimator (structural: no subclassing needed)."""
@@ -188,3 +230,8 @@ class Estimator(Protocol):
     def step(self, measurement: Measurement) -> Estimate:
         """Process one navigation step and return the solution at its end."""
         ...
+
+
+# An estimator may also offer ``step_batch(batch: MeasurementBatch) -> EstimateBatch``,
+# a fast path that must give the same numbers as calling ``step`` on each measurement
+# in turn (to floating-point rounding); navsim's episode runner uses it when present.
