@@ -109,7 +109,7 @@ def write_npz(path: str | Path, chunks: Iterable, meta: dict | None = None, n_sa
         finally:
             for f in files.values():
                 f.close()
-        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
             for key, (dtype, tail, count) in specs.items():
                 with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
                     np.lib.format.write_array_header_1_0(

@@ -107,7 +107,6 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cholesky, hilbert
-from scipy.signal import lfilter
 
 from ..errors import ConfigError
 
@@ -806,6 +805,8 @@ def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDAr
     ``scipy.signal.lfilter`` with ``zi = phi * x_0`` evaluates exactly
     ``y_k = drive_k + phi * y_{k-1}``, so the result does not depend on chunking.
     """
+    from scipy.signal import lfilter  # lazy: scipy.signal costs ~0.7 s to import
+
     n = drive.shape[0]
     out = np.empty_like(drive)
     flat_drive = drive.reshape(n, -1)
