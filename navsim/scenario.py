@@ -349,7 +349,7 @@ def _convert(tp, value, path: str):
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise ConfigError(path, "a table", value)
-        return _from_dict(tp, value, path)
+        return _from_dict(tp, value, f"{path}.")
     if origin is tuple:
         args = typing.get_args(tp)
         if not isinstance(value, (list, tuple)):
