@@ -1,0 +1,636 @@
+"""Shared error-state INS machinery: the 15-state ENU error model and a propagation engine.
+
+Used by the INS-only, loosely coupled and (optionally) tightly coupled estimators. Two
+layers:
+
+* pure functions of the linearised error model: :func:`error_dynamics` (the continuous
+  matrix F), :func:`noise_density` (Qc), :func:`transition` (Phi and Qd over a time span by
+  the series below), :func:`joseph_update`, :func:`correct_state`,
+  :func:`compensate_increments`, :func:`solution_rows`;
+* :class:`ErrorStateIns`, a stateful engine: the INS mechanisation of
+  :func:`navsim.strapdown.ins.integrate` on bias-compensated increments, the 15 x 15
+  covariance propagated once per *covariance interval*, and closed-loop (feedback)
+  measurement updates. An estimator owns one engine, calls :meth:`ErrorStateIns.advance`
+  with the IMU data of one or many steps and :meth:`ErrorStateIns.update` with a linear
+  (linearised) measurement of the error state.
+
+Error state (15,), every navigation error "estimate minus truth" as in
+:mod:`navsim.estimators.base`::
+
+    x = [dE, dN, dU (m),  dvE, dvN, dvU (m/s),  psiE, psiN, psiU (rad),
+         eg_x, eg_y, eg_z (rad/s),  ea_x, ea_y, ea_z (m/s^2)]
+
+``psi``: ``mat_nb_est = (I + [psi x]) mat_nb_true``. ``eg``, ``ea``: the *residual* gyro and
+accelerometer biases in body axes, ``b_true - b_est``, i.e. what is left in the compensated
+outputs ``omega_est = omega_true + eg``, ``f_est = f_true + ea``. The feedback adds the
+estimated residual to the bias estimate (``b_est += eg_hat``) and removes the navigation
+errors from the INS (``lat -= dN / (R_N + h)`` ..., ``mat_nb <- (I - [psi x]) mat_nb``).
+
+Error dynamics (derived here in ENU with metric position errors; Groves 2013 eqs.
+(14.63)-(14.71) give the NED/curvilinear form of the same model)::
+
+    psi'  = -omega_in x psi - d omega_in + C eg                         (a)
+    dv'   = -f_n x psi + C ea - (2 omega_ie + omega_en) x dv
+            - (2 d omega_ie + d omega_en) x v + dg                       (b)
+    dN'   = dvN + vU/RN' dN - vN/RN' dU                                 (c)
+    dE'   = dvE + (R_E,lat L'/RE' + vU/RE' - tan(L) L') dE
+            - vE (R_E,lat/RE' - tan L) dN/RN' - vE/RE' dU                (d)
+    dU'   = dvU
+    eg'   = -eg / tau_g + w_g,    ea' = -ea / tau_a + w_a               (e)
+
+with ``RN' = R_N + h``, ``RE' = R_E + h``, ``L' = vN / RN'``, ``R_E,lat = dR_E/dlat``,
+``C = mat_nb``, ``f_n = C f_b`` and ``d omega``, ``dg`` the first-order changes of the Earth
+rate, transport rate and gravity with dL = dN/RN', dh = dU, dv. (a) follows from
+differentiating ``C_est = (I + Psi) C`` with both attitude equations of
+:mod:`navsim.strapdown.ins`; (c), (d) from ``dN = RN' dlat``, ``dE = RE' cos(L) dlon``.
+tests/estimators/test_loosely.py checks F against finite differences of the nonlinear
+mechanisation equations.
+
+Noise: white gyro and accelerometer noise enter (a), (b) through C with PSDs ARW^2 and
+VRW^2 (isotropic, so C drops out of Qc); the biases are first-order Gauss-Markov with the
+nominal sigma and correlation time, driving PSD ``2 sigma^2 / tau``, plus the
+rate-random-walk PSD (``tau = inf`` makes them random walks / random constants).
+
+Covariance intervals (the speed device)
+---------------------------------------
+Propagating a 15 x 15 covariance at every 100 Hz step costs more than the INS itself. The
+engine builds F once per *interval* (at most ``interval_steps`` navigation steps, ended
+early by a measurement update) from the state at the interval start and the mean
+specific force ``f_n`` of the previous interval, and uses over the interval
+
+    Phi(tau) = I + F tau + F^2 tau^2/2 + F^3 tau^3/6                    (3rd-order series)
+    Qd(tau)  = int_0^tau Phi(s) Qc Phi(s)^T ds   with Phi(s) to 2nd order:
+             = Qc tau + A tau^2/2 + B tau^3/3 + C3 tau^4/4 + D tau^5/5,
+      A = F Qc + Qc F^T,  B = F Qc F^T + (F^2 Qc + Qc F^2T)/2,
+      C3 = (F^2 Qc F^T + F Qc F^2T)/2,  D = F^2 Qc F^2T / 4
+    P(tau)   = Phi(tau) P0 Phi(tau)^T + Qd(tau)                          # P = F P F^T + Q
+
+The reported covariance at every step inside the interval is this P(tau) (so NEES is
+meaningful between GNSS epochs too), and the covariance at the interval end starts the
+next one. The chain position <- velocity <- attitude <- gyro bias is cubic in tau and is
+carried exactly by the third-order Phi. Everything used at step j of an interval is known
+at step j, so stepping one step at a time and advancing many steps at once give the same
+numbers (to rounding): the contract of ``step_batch``.
+
+Bias compensation: the biases are constant between updates, so a constant ``b`` is
+removed from every order r of the multiple integrals over a step exactly as
+``b dt^r / r!`` and from every sub-sample increment as ``b h``
+(:func:`compensate_increments`), before the strapdown algorithms see the data.
+
+References
+----------
+.. [1] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+       Systems, 2nd ed., Artech House, 2013: sections 14.2 (INS error propagation,
+       local-navigation-frame form), 14.1.3 (closed-loop correction), 3.2.2 and 3.4
+       (discrete system and process noise, Joseph form).
+.. [2] Savage P.G., Strapdown Analytics, 2nd ed., 2007, ch. 12 (error equations).
+.. [3] Van Loan C.F. (1978), Computing integrals involving the matrix exponential, IEEE
+       TAC 23(3): the integral that the Qd series above truncates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..errors import ConfigError
+from ..rotations import hpr_from_mat_nb, mat_nb_from_hpr, mat_to_quat, quat_to_mat
+from ..strapdown.ins import InsState, integrate
+from .base import NominalImu
+
+__all__ = [
+    "N_STATES",
+    "POS",
+    "VEL",
+    "ATT",
+    "BG",
+    "BA",
+    "NAV",
+    "ImuNoise",
+    "error_dynamics",
+    "noise_density",
+    "transition",
+    "joseph_update",
+    "correct_state",
+    "compensate_increments",
+    "solution_rows",
+    "state_from_prior",
+    "ErrorStateIns",
+    "nis_threshold",
+]
+
+N_STATES = 15
+POS, VEL, ATT, BG, BA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+NAV = slice(0, 9)
+
+
+# ============================================================================ noise model
+@dataclass(frozen=True, slots=True)
+class ImuNoise:
+    """Process-noise model of the error state (per axis, isotropic).
+
+    Parameters
+    ----------
+    gyro_psd : float
+        White gyro noise PSD (ARW^2), rad^2/s.
+    accel_psd : float
+        White accelerometer noise PSD (VRW^2), m^2/s^3.
+    gyro_bias_sigma, accel_bias_sigma : float
+        Stationary sigma of the bias states, rad/s and m/s^2 (also their initial sigma).
+    gyro_bias_tau_s, accel_bias_tau_s : float
+        Gauss-Markov correlation times, s (``inf``: random constant / random walk).
+    gyro_rrw_psd, accel_rrw_psd : float
+        Rate-random-walk PSDs, rad^2/s^3 and m^2/s^5.
+    """
+
+    gyro_psd: float = 0.0
+    accel_psd: float = 0.0
+    gyro_bias_sigma: float = 0.0
+    accel_bias_sigma: float = 0.0
+    gyro_bias_tau_s: float = math.inf
+    accel_bias_tau_s: float = math.inf
+    gyro_rrw_psd: float = 0.0
+    accel_rrw_psd: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ImuNoise.__slots__:
+            value = float(getattr(self, name))
+            if name.endswith("tau_s"):
+                if not value > 0.0:
+                    raise ConfigError(f"noise.{name}", "a positive time (s) or inf", value)
+            elif not (value >= 0.0 and math.isfinite(value)):
+                raise ConfigError(f"noise.{name}", "a non-negative finite number", value)
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_nominal(cls, nominal: NominalImu, *, noise_scale: float = 1.0, bias_scale: float = 1.0) -> ImuNoise:
+        """The model of a :class:`NominalImu`: PSDs are squared densities; the bias sigma
+        (turn-on plus instability, as the context reports it) becomes a Gauss-Markov
+        process with the nominal correlation time. ``noise_scale``, ``bias_scale``
+        multiply the sigmas (tuning)."""
+        for name, value in (("noise_scale", noise_scale), ("bias_scale", bias_scale)):
+            if not (value > 0.0 and math.isfinite(value)):
+                raise ConfigError(name, "a positive finite factor", value)
+        return cls(
+            gyro_psd=(noise_scale * nominal.gyro_arw) ** 2,
+            accel_psd=(noise_scale * nominal.accel_vrw) ** 2,
+            gyro_bias_sigma=bias_scale * nominal.gyro_bias_sigma,
+            accel_bias_sigma=bias_scale * nominal.accel_bias_sigma,
+            gyro_bias_tau_s=nominal.gyro_bias_tau_s,
+            accel_bias_tau_s=nominal.accel_bias_tau_s,
+            gyro_rrw_psd=(bias_scale * nominal.gyro_rrw) ** 2,
+            accel_rrw_psd=(bias_scale * nominal.accel_rrw) ** 2,
+        )
+
+
+# ============================================================================ the model
+def _gravity_partials(earth, lat: float, h: float) -> tuple[float, float, float, float]:
+    """d g_N/d lat, d g_N/d h, d g_U/d lat, d g_U/d h of :meth:`EarthModel.gravity_n`."""
+    s, c = math.sin(lat), math.cos(lat)
+    if earth.name == "spherical":
+        w2 = earth.rate**2
+        return -w2 * (earth.a + h) * (c * c - s * s), -w2 * c * s, -2.0 * w2 * (earth.a + h) * c * s, w2 * c * c
+    a, f, e2 = earth.a, earth.f, earth.e2
+    gamma_e, k_som = 9.7803253359, 0.00193185265241  # TR8350.2, as in earth.gravity_n
+    m = earth.rate**2 * a**2 * a * (1.0 - f) / earth.gm
+    s2 = s * s
+    w2 = 1.0 - e2 * s2
+    gamma = gamma_e * (1.0 + k_som * s2) / math.sqrt(w2)
+    dgamma = gamma_e * (2.0 * k_som * s * c / math.sqrt(w2) + (1.0 + k_som * s2) * e2 * s * c / w2**1.5)
+    factor = 1.0 - 2.0 / a * (1.0 + f + m - 2.0 * f * s2) * h + 3.0 / a**2 * h * h
+    dfactor_lat = 8.0 * f * s * c * h / a
+    dfactor_h = -2.0 / a * (1.0 + f + m - 2.0 * f * s2) + 6.0 * h / a**2
+    return 0.0, 0.0, -(dgamma * factor + gamma * dfactor_lat), -gamma * dfactor_h
+
+
+def error_dynamics(lat: float, h: float, velocity_n, mat_nb, specific_force_n, earth,
+                   noise: ImuNoise) -> np.ndarray:
+    """Continuous-time error dynamics matrix F (15, 15) of the module's error state.
+
+    Parameters
+    ----------
+    lat, h : float
+        Latitude (rad) and height (m) of the INS.
+    velocity_n : array_like, shape (3,)
+        ENU velocity, m/s.
+    mat_nb : array_like, shape (3, 3)
+        Body-to-ENU attitude matrix C.
+    specific_force_n : array_like, shape (3,)
+        Specific force in ENU, m/s^2 (about ``[0, 0, +g]`` at rest).
+    earth : EarthModel
+    noise : ImuNoise
+        Only the bias correlation times are used.
+
+    Returns
+    -------
+    ndarray, shape (15, 15)
+        ``x' = F x + noise``; equations (a)-(e) of the module docstring.
+    """
+    ve, vn, vu = (float(x) for x in velocity_n)
+    fe, fn, fu = (float(x) for x in specific_force_n)
+    C = np.asarray(mat_nb, dtype=float)
+    rate = earth.rate
+    s, c = math.sin(lat), math.cos(lat)
+    t = s / c
+    r_n, r_e = (float(x) for x in earth.radii(lat))
+    dr_n, dr_e = (float(x) for x in earth.radii_derivative(lat))
+    rnh, reh = r_n + h, r_e + h
+    lat_rate = vn / rnh
+    w_ie = (0.0, rate * c, rate * s)
+    w_en = (-vn / rnh, ve / reh, ve * t / reh)
+    w_in = (w_ie[0] + w_en[0], w_ie[1] + w_en[1], w_ie[2] + w_en[2])
+    cor = (2 * w_ie[0] + w_en[0], 2 * w_ie[1] + w_en[1], 2 * w_ie[2] + w_en[2])
+
+    # first-order changes of the rates: rows (E, N, U), columns (dlat, dh, dvE, dvN)
+    d_wie = np.array([[0.0, 0.0, 0.0, 0.0], [-rate * s, 0.0, 0.0, 0.0], [rate * c, 0.0, 0.0, 0.0]])
+    d_wen = np.array([
+        [vn * dr_n / rnh**2, vn / rnh**2, 0.0, -1.0 / rnh],
+        [-ve * dr_e / reh**2, -ve / reh**2, 1.0 / reh, 0.0],
+        [ve / (c * c * reh) - ve * t * dr_e / reh**2, -ve * t / reh**2, t / reh, 0.0],
+    ])
+    # map (dlat, dh, dvE, dvN) to the state: dlat = dN / RN', dh = dU
+    to_state = np.zeros((4, N_STATES))
+    to_state[0, 1] = 1.0 / rnh
+    to_state[1, 2] = 1.0
+    to_state[2, 3] = 1.0
+    to_state[3, 4] = 1.0
+    d_win = (d_wie + d_wen) @ to_state  # (3, 15)
+    d_cor = (2.0 * d_wie + d_wen) @ to_state
+
+    F = np.zeros((N_STATES, N_STATES))
+    # (c), (d): position
+    F[0, 0] = dr_e * lat_rate / reh + vu / reh - t * lat_rate
+    F[0, 1] = -ve * (dr_e / reh - t) / rnh
+    F[0, 2] = -ve / reh
+    F[0, 3] = 1.0
+    F[1, 1] = vu / rnh
+    F[1, 2] = -vn / rnh
+    F[1, 4] = 1.0
+    F[2, 5] = 1.0
+    # (b): velocity
+    vel = np.array([ve, vn, vu])
+    # -(2 d w_ie + d w_en) x v = v x d_cor
+    F[VEL] += np.cross(vel, d_cor.T).T
+    dgn_dlat, dgn_dh, dgu_dlat, dgu_dh = _gravity_partials(earth, lat, h)
+    F[4, 1] += dgn_dlat / rnh
+    F[4, 2] += dgn_dh
+    F[5, 1] += dgu_dlat / rnh
+    F[5, 2] += dgu_dh
+    # -(2 w_ie + w_en) x dv
+    F[VEL, VEL] = -_skew3(cor)
+    # -f_n x psi
+    F[VEL, ATT] = -_skew3((fe, fn, fu))
+    F[VEL, BA] = C
+    # (a): attitude
+    F[ATT, ATT] = -_skew3(w_in)
+    F[ATT] -= d_win
+    F[ATT, BG] = C
+    # (e): biases
+    F[BG, BG] = -np.eye(3) / noise.gyro_bias_tau_s
+    F[BA, BA] = -np.eye(3) / noise.accel_bias_tau_s
+    return F
+
+
+def _skew3(v) -> np.ndarray:
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def noise_density(noise: ImuNoise) -> np.ndarray:
+    """Qc = G Q G^T (15, 15), the white-noise PSD matrix of the error state.
+
+    Isotropic sensor noise makes ``C q C^T = q I``, so Qc is diagonal and constant.
+    """
+    q = np.zeros(N_STATES)
+    q[VEL] = noise.accel_psd
+    q[ATT] = noise.gyro_psd
+    q[BG] = 2.0 * noise.gyro_bias_sigma**2 / noise.gyro_bias_tau_s + noise.gyro_rrw_psd
+    q[BA] = 2.0 * noise.accel_bias_sigma**2 / noise.accel_bias_tau_s + noise.accel_rrw_psd
+    return np.diag(q)
+
+
+@dataclass(frozen=True, slots=True)
+class _Series:
+    """Series coefficients of Phi(tau) and Qd(tau) for one F (see the module notes)."""
+
+    F: np.ndarray
+    F2h: np.ndarray  # F^2 / 2
+    F3s: np.ndarray  # F^3 / 6
+    q1: np.ndarray  # Qc
+    q2: np.ndarray  # A / 2
+    q3: np.ndarray  # B / 3
+    q4: np.ndarray  # C3 / 4
+    q5: np.ndarray  # D / 5
+
+    @classmethod
+    def build(cls, F: np.ndarray, Qc: np.ndarray) -> _Series:
+        F2 = F @ F
+        FQ = F @ Qc
+        F2Q = F2 @ Qc
+        A = FQ + FQ.T
+        B = FQ @ F.T + 0.5 * (F2Q + F2Q.T)
+        C3 = F2Q @ F.T
+        C3 = 0.5 * (C3 + C3.T)
+        D = 0.25 * F2Q @ F2.T
+        return cls(F, 0.5 * F2, F2 @ F / 6.0, Qc, 0.5 * A, B / 3.0, 0.25 * C3, 0.2 * D)
+
+    def phi(self, tau: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """Phi(tau) rows, shape (k, len(rows), 15)."""
+        tau = tau[:, None, None]
+        eye = np.eye(N_STATES)[rows]
+        return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * self.F3s[rows]))
+
+    def qd(self, tau: np.ndarray, block=slice(None)) -> np.ndarray:
+        """Qd(tau) block, shape (k, n, n)."""
+        tau = tau[:, None, None]
+        b = (block, block)
+        return tau * (self.q1[b] + tau * (self.q2[b] + tau * (self.q3[b] + tau * (self.q4[b] + tau * self.q5[b]))))
+
+
+def transition(F: np.ndarray, Qc: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phi(tau) (15, 15) and Qd(tau) (15, 15) by the series of the module docstring."""
+    series = _Series.build(np.asarray(F, dtype=float), np.asarray(Qc, dtype=float))
+    t = np.array([float(tau)])
+    return series.phi(t)[0], series.qd(t)[0]
+
+
+def joseph_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray):
+    """Kalman update of a zero-mean error state in Joseph form.
+
+    Parameters
+    ----------
+    P : (n, n) prior covariance. H : (m, n). R : (m, m). innovation : (m,) = z - H x
+    with x = 0 (the closed-loop error state).
+
+    Returns
+    -------
+    dx : (n,) the error-state estimate K y.
+    P_new : (n, n) ``(I - K H) P (I - K H)^T + K R K^T``, symmetrised.
+    nis : float, ``y^T S^-1 y``.
+    """
+    # S = H P H^T + R
+    PHt = P @ H.T
+    S = H @ PHt + R
+    # K = P H^T S^-1 (Cholesky solve; S is SPD)
+    cho = np.linalg.cholesky(S)
+    K = np.linalg.solve(cho.T, np.linalg.solve(cho, PHt.T)).T
+    w = np.linalg.solve(cho, innovation)
+    nis = float(w @ w)
+    dx = K @ innovation
+    # P = (I - K H) P (I - K H)^T + K R K^T
+    IKH = np.eye(P.shape[0]) - K @ H
+    P_new = IKH @ P @ IKH.T + K @ R @ K.T
+    return dx, 0.5 * (P_new + P_new.T), nis
+
+
+def correct_state(state: InsState, dx_nav, earth) -> InsState:
+    """Remove an estimated navigation error ``dx_nav`` (9,) from an INS state (feedback).
+
+    Position ``lat -= dN / (R_N + h)``, ``lon -= dE / ((R_E + h) cos lat)``, ``h -= dU``;
+    velocity ``v -= dv``; attitude ``mat_nb <- exp(-[psi x]) mat_nb`` (the inverse of the
+    error definition, applied on the ENU side of the quaternion).
+    """
+    de, dn, du, dve, dvn, dvu, pe, pn, pu = (float(x) for x in dx_nav)
+    lat, h = state.lat, state.h
+    r_n, r_e = earth.radii(lat)
+    lat_new = lat - dn / (float(r_n) + h)
+    lon_new = state.lon - de / ((float(r_e) + h) * math.cos(lat))
+    v = state.velocity_n
+    # q(-psi) o q_nb
+    angle = math.sqrt(pe * pe + pn * pn + pu * pu)
+    half = 0.5 * angle
+    k = -(math.sin(half) / angle if angle > 1e-12 else 0.5 - angle * angle / 48.0)
+    r0, r1, r2, r3 = math.cos(half), k * pe, k * pn, k * pu
+    q0, q1, q2, q3 = (float(x) for x in state.quat_nb)
+    quat = np.array([
+        r0 * q0 - r1 * q1 - r2 * q2 - r3 * q3,
+        r0 * q1 + r1 * q0 + r2 * q3 - r3 * q2,
+        r0 * q2 - r1 * q3 + r2 * q0 + r3 * q1,
+        r0 * q3 + r1 * q2 - r2 * q1 + r3 * q0,
+    ])
+    quat /= math.sqrt(float(quat @ quat))
+    return InsState(lat_new, lon_new, h - du, (v[0] - dve, v[1] - dvn, v[2] - dvu), quat, state.compensation)
+
+
+def compensate_increments(dtheta_sub, dv_sub, dtheta_r, dv_r, gyro_bias, accel_bias, nav_period_s: float):
+    """Remove constant biases (rad/s, m/s^2, body axes) from the IMU data of n steps.
+
+    ``dtheta_r[:, r-1] -= b dt^r / r!`` (the r-fold integral of a constant over the
+    step dt); ``dtheta_sub -= b dt / m`` for m sub-samples. Arrays may be None.
+    Returns the four arrays (new arrays; inputs are not modified).
+    """
+    out = []
+    for arr, bias in ((dtheta_sub, gyro_bias), (dv_sub, accel_bias)):
+        if arr is None:
+            out.append(None)
+        else:
+            arr = np.asarray(arr, dtype=float)
+            out.append(arr - np.asarray(bias) * (nav_period_s / arr.shape[-2]))
+    for arr, bias in ((dtheta_r, gyro_bias), (dv_r, accel_bias)):
+        if arr is None:
+            out.append(None)
+        else:
+            arr = np.asarray(arr, dtype=float)
+            orders = arr.shape[-2]
+            kern = np.array([nav_period_s**r / math.factorial(r) for r in range(1, orders + 1)])
+            out.append(arr - kern[:, None] * np.asarray(bias)[None, :])
+    return out[0], out[1], out[2], out[3]
+
+
+def solution_rows(lat, lon, h, velocity_n, quat_nb) -> np.ndarray:
+    """(n, 9) rows ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]`` of INS outputs."""
+    heading, pitch, roll = hpr_from_mat_nb(quat_to_mat(quat_nb))
+    return np.column_stack([lat, lon, h, velocity_n, heading, pitch, roll])
+
+
+def state_from_prior(prior) -> InsState:
+    """The INS state of a :class:`navsim.simulator.Prior`."""
+    quat = mat_to_quat(mat_nb_from_hpr(prior.heading, prior.pitch, prior.roll))
+    return InsState(prior.lat, prior.lon, prior.h, np.asarray(prior.velocity_n, dtype=float), quat)
+
+
+# ============================================================================ the engine
+class ErrorStateIns:
+    """INS mechanisation plus a 15-state error covariance with closed-loop feedback.
+
+    Parameters
+    ----------
+    context : navsim.estimators.base.Context
+        Earth model and time base (``nav_period_s``).
+    prior : navsim.simulator.Prior
+        Initial state; its 9 x 9 covariance starts the navigation block of P, the bias
+        block starts at ``diag(sigma^2)`` of ``noise``.
+    noise : ImuNoise
+    interval_steps : int
+        Navigation steps per covariance interval (see the module notes).
+    coning, sculling, position : str or None
+        Strapdown methods (None: the most accurate the data allow).
+    estimate_biases : bool
+        False keeps the bias estimates at zero (the bias states still shape P).
+
+    Attributes
+    ----------
+    state : InsState
+        The corrected INS state at the last processed step.
+    gyro_bias, accel_bias : ndarray (3,)
+        Current bias estimates (body axes), rad/s and m/s^2.
+    steps : int
+        Navigation steps processed since the reset.
+    diverged : bool
+        Set when the covariance lost symmetry/positive definiteness or became non-finite
+        (it is then repaired: symmetrised, eigenvalues floored), or the state became
+        non-finite.
+    """
+
+    def __init__(self, context, prior, noise: ImuNoise, *, interval_steps: int = 100, coning=None,
+                 sculling=None, position=None, estimate_biases: bool = True) -> None:
+        if int(interval_steps) != interval_steps or interval_steps < 1:
+            raise ConfigError("interval_steps", "a positive integer number of navigation steps", interval_steps)
+        self.earth = context.earth
+        self.dt = float(context.nav_period_s)
+        self.noise = noise
+        self.interval_steps = int(interval_steps)
+        self.methods = dict(coning=coning, sculling=sculling, position=position)
+        self.estimate_biases = bool(estimate_biases)
+        self.Qc = noise_density(noise)
+        self.state = state_from_prior(prior)
+        self.gyro_bias = np.zeros(3)
+        self.accel_bias = np.zeros(3)
+        P = np.zeros((N_STATES, N_STATES))
+        P[NAV, NAV] = np.asarray(prior.covariance, dtype=float)
+        P[BG, BG] = np.eye(3) * noise.gyro_bias_sigma**2
+        P[BA, BA] = np.eye(3) * noise.accel_bias_sigma**2
+        self.steps = 0
+        self.diverged = False
+        g = self.earth.gravity_n(self.state.lat, self.state.h)
+        self._f_n = -np.asarray(g, dtype=float)  # at rest until measured
+        self._f_sum = np.zeros(3)
+        self._f_count = 0
+        self._start_interval(P)
+
+    # -- covariance intervals ----------------------------------------------------------
+    def _start_interval(self, P: np.ndarray) -> None:
+        """Begin a covariance interval at the current step with covariance P."""
+        if self._f_count:  # mean specific force of the interval that ends here
+            self._f_n = self._f_sum / (self._f_count * self.dt)
+        self._f_sum = np.zeros(3)
+        self._f_count = 0
+        self._P0 = P
+        self._j = 0  # steps into the interval
+        st = self.state
+        F = error_dynamics(st.lat, st.h, st.velocity_n, quat_to_mat(st.quat_nb), self._f_n, self.earth, self.noise)
+        self._series = _Series.build(F, self.Qc)
+
+    def _full_covariance(self, j: int) -> np.ndarray:
+        """P(tau = j dt) of the current interval (15, 15), symmetrised and guarded."""
+        tau = np.array([j * self.dt])
+        phi = self._series.phi(tau)[0]
+        P = phi @ self._P0 @ phi.T + self._series.qd(tau)[0]  # P = F P F^T + Q
+        return self._guard(0.5 * (P + P.T))
+
+    def _guard(self, P: np.ndarray) -> np.ndarray:
+        d = np.diag(P)
+        if np.all(np.isfinite(P)) and np.all(d >= 0.0):
+            return P
+        self.diverged = True
+        if not np.all(np.isfinite(P)):
+            return np.diag(np.where(np.isfinite(d) & (d > 0), d, 1e6))
+        w, v = np.linalg.eigh(P)
+        return (v * np.maximum(w, 1e-12 * max(float(w.max()), 1e-300))) @ v.T
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The full 15 x 15 covariance at the last processed step."""
+        return self._full_covariance(self._j)
+
+    # -- propagation -------------------------------------------------------------------
+    def advance(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> tuple[np.ndarray, np.ndarray]:
+        """Process n navigation steps of IMU data (arrays as in :class:`MeasurementBatch`).
+
+        Returns
+        -------
+        solution : ndarray (n, 9)
+            ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]`` at each step end.
+        covariance : ndarray (n, 9, 9)
+            Navigation block of P at each step end.
+        """
+        th_s, dv_s, th_r, dv_rr = compensate_increments(dtheta_sub, dv_sub, dtheta_r, dv_r,
+                                                        self.gyro_bias, self.accel_bias, self.dt)
+        sol = integrate(self.state, th_s, dv_s, th_r, dv_rr, dt=self.dt, earth=self.earth, **self.methods)
+        n = len(sol) - 1
+        rows = solution_rows(sol.lat[1:], sol.lon[1:], sol.h[1:], sol.velocity_n[1:], sol.quat_nb[1:])
+        # specific force in ENU per step, C(k+1) dV_k / dt (for F of the next interval)
+        dv_first = dv_s.sum(axis=1) if dv_s is not None else dv_rr[:, 0]
+        f_dv = np.einsum("kij,kj->ki", quat_to_mat(sol.quat_nb[1:]), dv_first)
+        cov = np.empty((n, 9, 9))
+        i = 0
+        while i < n:
+            take = min(self.interval_steps - self._j, n - i)
+            tau = (self._j + 1 + np.arange(take)) * self.dt
+            phi9 = self._series.phi(tau, NAV)  # (k, 9, 15)
+            cov[i:i + take] = np.einsum("kij,jl,kml->kim", phi9, self._P0, phi9) + self._series.qd(tau, NAV)
+            self._f_sum = self._f_sum + f_dv[i:i + take].sum(axis=0)
+            self._f_count += take
+            self._j += take
+            i += take
+            if self._j == self.interval_steps:
+                # the interval ends: its end covariance starts the next one (state there)
+                P_end = self._full_covariance(self._j)
+                self.state = sol.state(i)
+                self._start_interval(P_end)
+        self.state = sol.final
+        self.steps += n
+        if not (math.isfinite(self.state.lat) and np.all(np.isfinite(self.state.velocity_n))):
+            self.diverged = True
+        return rows, cov
+
+    # -- measurement update --------------------------------------------------------------
+    def update(self, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[float, np.ndarray]:
+        """Closed-loop Kalman update at the current step.
+
+        Parameters
+        ----------
+        H : (m, 15). R : (m, m). innovation : (m,) measurement minus its prediction from
+        the current (corrected) INS state, i.e. ``y = H x + v`` for the error state x.
+
+        Returns
+        -------
+        nis : float
+        dx : (15,) the estimated error that was fed back.
+
+        The covariance interval restarts here with the updated covariance and the
+        corrected state.
+        """
+        P = self._full_covariance(self._j)
+        try:
+            dx, P_new, nis = joseph_update(P, H, R, innovation)
+        except np.linalg.LinAlgError:
+            self.diverged = True
+            self._start_interval(P)
+            return math.nan, np.zeros(N_STATES)
+        if not np.all(np.isfinite(dx)):
+            self.diverged = True
+            self._start_interval(P)
+            return math.nan, np.zeros(N_STATES)
+        if not self.estimate_biases:
+            dx[BG] = 0.0
+            dx[BA] = 0.0
+        self.state = correct_state(self.state, dx[NAV], self.earth)
+        self.gyro_bias = self.gyro_bias + dx[BG]
+        self.accel_bias = self.accel_bias + dx[BA]
+        self._start_interval(self._guard(P_new))
+        return nis, dx
+
+    def current_row(self) -> np.ndarray:
+        """The solution row (9,) of the current state."""
+        st = self.state
+        return solution_rows(np.array([st.lat]), np.array([st.lon]), np.array([st.h]),
+                             st.velocity_n[None], st.quat_nb[None])[0]
+
+
+def nis_threshold(dof: int, probability: float = 1e-6) -> float:
+    """Chi-square quantile exceeded with ``probability`` (innovation-test helper)."""
+    return float(chi2.isf(probability, dof))
