@@ -118,11 +118,11 @@ def _cmd_paper(args) -> int:
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
-    widths = (14, 46, 12, 12, 10)
-    print("".join(h.ljust(w) for h, w in zip(("ref", "quantity", "paper", "navsim", "unit"), widths)))
-    for row in rows:
-        cells = [row["ref"], row["quantity"], _fmt(row["paper"]), _fmt(row["navsim"]), row["unit"]]
-        print("".join(str(c).ljust(w) for c, w in zip(cells, widths)))
+    header = ("ref", "quantity", "paper", "navsim", "unit")
+    table = [[row["ref"], row["quantity"], _fmt(row["paper"]), _fmt(row["navsim"]), row["unit"]] for row in rows]
+    widths = [max(len(str(r[i])) for r in [header, *table]) + 2 for i in range(5)]
+    for cells in [header, *table]:
+        print("".join(str(c).ljust(w) for c, w in zip(cells, widths)).rstrip())
     if args.plot_dir:
         print(f"plots in {args.plot_dir}", file=sys.stderr)
     return 0
