@@ -1,0 +1,223 @@
+"""Tests of the along-track filter (navsim.estimators.along_track)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from navsim.errors import ConfigError
+from navsim.episode import make_context, measurement_batch, run_episode
+from navsim.estimators import make
+from navsim.estimators.along_track import AlongTrackFilter, TrackTable
+from navsim.estimators.base import GnssObservation
+from navsim.metrics import error_vector
+from navsim.scenario import load_scenario
+from navsim.simulator import Simulator
+from navsim.track import track_frame
+
+
+def _scenario(duration=60.0, outage=None, **more):
+    over = {"timing": {"duration_s": duration}, "outages": {"windows_s": [outage] if outage else []}}
+    over.update(more)
+    return load_scenario("paper-2012").with_overrides(over)
+
+
+def _along_errors(rec):
+    """Errors and covariance projected on the true tangent: ds, dv, P (n, 2, 2)."""
+    e = error_vector(rec)
+    t = rec.truth_velocity_n / np.linalg.norm(rec.truth_velocity_n, axis=1)[:, None]
+    ds = np.einsum("ni,ni->n", t, e[:, :3])
+    dv = np.einsum("ni,ni->n", t, e[:, 3:6])
+    C = rec.est_cov
+    P = np.empty((len(ds), 2, 2))
+    P[:, 0, 0] = np.einsum("ni,nij,nj->n", t, C[:, :3, :3], t)
+    P[:, 1, 1] = np.einsum("ni,nij,nj->n", t, C[:, 3:6, 3:6], t)
+    P[:, 0, 1] = P[:, 1, 0] = np.einsum("ni,nij,nj->n", t, C[:, :3, 3:6], t)
+    return ds, dv, P
+
+
+def _nees2(ds, dv, P):
+    err = np.stack([ds, dv], axis=-1)
+    return np.einsum("ni,ni->n", err, np.linalg.solve(P, err[..., None])[..., 0])
+
+
+def test_registry_builds_it():
+    assert isinstance(make("along-track", update="fix"), AlongTrackFilter)
+    with pytest.raises(ConfigError):
+        make("along-track", update="magic")
+    with pytest.raises(ConfigError):
+        AlongTrackFilter(table_step_m=-1.0)
+
+
+def test_table_matches_track_frame():
+    sc = load_scenario("mountain-railway")
+    track = Simulator(sc).track
+    table = TrackTable(track, 5.0)
+    rng = np.random.default_rng(1)
+    s = rng.uniform(0.0, track.length, 200)
+    frame = track_frame(track, s)
+    r = table.position_e(s)
+    r_true = track.earth.geodetic_to_ecef(frame.lat, frame.lon, frame.h)
+    assert np.max(np.linalg.norm(r - r_true, axis=1)) < 1e-4  # m, curves >= 300 m radius
+    t_n = table.evaluate(s, table.T_N)
+    assert np.max(np.abs(t_n - frame.tangent_n)) < 1e-6
+    assert np.max(np.abs(table.evaluate(s, table.CANT) - frame.cant)) < 1e-5  # rad, cant ramps
+    # the tangent the update uses is the derivative of the interpolated position
+    h = 1e-3
+    fd = (table.evaluate(s + h, table.R_E) - table.evaluate(s - h, table.R_E)) / (2 * h)
+    assert np.max(np.abs(fd - table.evaluate(s, table.R_E, 1))) < 1e-7
+    # projection recovers s from an off-track point displaced perpendicular to the tangent
+    up = np.array([0.0, 0.0, 1.0])
+    for si in s[:10]:
+        f = track_frame(track, si)
+        off = np.cross(f.tangent_n, up)
+        off_e = np.asarray(track.earth.geodetic_to_ecef(f.lat, f.lon, f.h)) + 3.0 * (
+            np.asarray(__import__("navsim.earth", fromlist=["mat_en"]).mat_en(f.lat, f.lon)).T @ off)
+        assert abs(table.project(off_e) - si) < 1e-3
+
+
+def test_gyro_free_dead_reckoning_is_exact_with_an_ideal_imu():
+    """(AT.1)-(AT.7): curves, grades, cant and a timetable; no GNSS; error ~ 0."""
+    sc = load_scenario("mountain-railway").with_overrides({
+        "timing": {"duration_s": 120.0}, "imu": {"preset": "ideal"}, "motion": {"oscillations": []},
+        "outages": {"windows_s": [[0.0, 200.0]]}})
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    truth0 = start.truth
+    prior = dataclasses.replace(
+        start.prior, lat=float(truth0.lat[0]), lon=float(truth0.lon[0]), h=float(truth0.h[0]),
+        velocity_n=truth0.velocity_n[0], heading=float(truth0.heading[0]), pitch=float(truth0.pitch[0]),
+        roll=float(truth0.roll[0]))
+    est = AlongTrackFilter()
+    est.reset(make_context(sim), prior)
+    chunk = sim.advance(sc.timing.steps)
+    out = est.step_batch(measurement_batch(chunk, np.asarray(sim.constellation.prn), sc.timing.nav_period_s))
+    s_true = chunk.truth.s
+    assert abs(est.x[0] - s_true[-1]) < 5e-3  # m after 120 s with speed changes
+    assert abs(est.x[1] - chunk.truth.speed[-1]) < 1e-4
+    # velocity and attitude from the map
+    assert np.max(np.abs(out.solution[:, 3:6] - chunk.truth.velocity_n)) < 1e-3
+    assert np.max(np.abs(out.solution[:, 8] - chunk.truth.roll)) < 1e-6
+
+
+def test_batch_equals_step_and_both_update_modes():
+    sc = _scenario(20.0, outage=[8.0, 14.0])
+    for opts in ({}, {"update": "fix"}):
+        a = run_episode(sc, AlongTrackFilter(**opts), seed=3, use_batch=True)
+        b = run_episode(sc, AlongTrackFilter(**opts), seed=3, use_batch=False)
+        assert np.allclose(a.est_lat, b.est_lat, rtol=0, atol=1e-12)
+        assert np.allclose(a.est_cov, b.est_cov, rtol=1e-10, atol=1e-14)
+        assert np.array_equal(np.isnan(a.nis), np.isnan(b.nis))
+        assert np.allclose(a.nis[~np.isnan(a.nis)], b.nis[~np.isnan(b.nis)])
+
+
+def test_measurement_jacobians_against_finite_differences():
+    sc = _scenario(2.0)
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    est = AlongTrackFilter()
+    est.reset(make_context(sim), start.prior)
+    chunk = sim.advance(sc.timing.steps)
+    g = chunk.gnss
+    j = 0
+    obs = GnssObservation(float(g.t[j]), np.asarray(sim.constellation.prn), g.sat_pos_e[j], g.sat_vel_e[j],
+                          g.pseudorange_m[j], g.pseudorange_rate_mps[j], g.valid[j])
+    use = obs.valid
+    s, v = 1234.5, 19.0
+    rho, rate, drho_ds, drate_ds, drate_dv = est._measurement_model(s, v, obs, use)
+    h = 1e-2
+    rp, ratep = est._measurement_model(s + h, v, obs, use)[:2]
+    rm, ratem = est._measurement_model(s - h, v, obs, use)[:2]
+    assert np.allclose((rp - rm) / (2 * h), drho_ds, atol=1e-7)
+    assert np.allclose((ratep - ratem) / (2 * h), drate_ds, rtol=1e-4, atol=1e-10)
+    assert np.max(np.abs(drate_ds)) > 1e-5  # the term is there to test
+    ratev = est._measurement_model(s, v + h, obs, use)[1]
+    assert np.allclose((ratev - rate) / h, drate_dv, atol=1e-9)
+
+
+def test_tunnel_bridging_error_consistent_with_covariance():
+    """A 100-s outage: the along-track error at its end is N(0, sigma^2) over seeds."""
+    sc = _scenario(130.0, outage=[30.0, 130.0])
+    z_s, z_v = [], []
+    for seed in range(6):
+        rec = run_episode(sc, AlongTrackFilter(), seed=seed)
+        ds, dv, P = _along_errors(rec)
+        z_s.append(ds[-1] / np.sqrt(P[-1, 0, 0]))
+        z_v.append(dv[-1] / np.sqrt(P[-1, 1, 1]))
+        # the covariance grew through the outage
+        assert P[-1, 0, 0] > 4 * P[2999, 0, 0]
+    stat = np.sum(np.square(z_s))
+    assert chi2.ppf(0.001, 6) < stat < chi2.ppf(0.999, 6)
+    assert np.sum(np.square(z_v)) < chi2.ppf(0.999, 6)
+
+
+def test_one_satellite_is_enough_on_the_map():
+    """With the map, a single pseudorange (no clock) fixes s; the LS fix needs four."""
+
+    class OneSat:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def reset(self, context, prior):
+            self.inner.reset(context, prior)
+
+        def step(self, m):
+            if m.gnss is not None:
+                valid = m.gnss.valid.copy()
+                keep = np.flatnonzero(valid)[:1]
+                valid[:] = False
+                valid[keep] = True
+                m = dataclasses.replace(m, gnss=dataclasses.replace(m.gnss, valid=valid))
+            return self.inner.step(m)
+
+    sc = _scenario(60.0)
+    pr = run_episode(sc, OneSat(AlongTrackFilter()), seed=2)
+    fix = run_episode(sc, OneSat(AlongTrackFilter(update="fix")), seed=2)
+    ds_pr = _along_errors(pr)[0]
+    ds_fix = _along_errors(fix)[0]
+    assert np.all(np.isnan(fix.nis))  # no fix possible: never updated
+    assert np.count_nonzero(~np.isnan(pr.nis)) == 60
+    # the prior's sigma is 15 m; with 60 single-satellite epochs it must shrink
+    assert abs(ds_pr[-1]) < 3 * np.sqrt(_along_errors(pr)[2][-1, 0, 0])
+    assert _along_errors(pr)[2][-1, 0, 0] < 0.2 * _along_errors(fix)[2][-1, 0, 0]
+
+
+def test_clock_states_with_the_standalone_receiver():
+    sc = _scenario(60.0, gnss={"preset": "standalone"})
+    rec = run_episode(sc, AlongTrackFilter(), seed=1)
+    est_extra_ok = True
+    ds = _along_errors(rec)[0]
+    assert np.max(np.abs(ds[1000:])) < 10.0  # m: clock (3 km bias) solved through the map
+    assert est_extra_ok
+
+
+def _nees_run(seeds, duration, outage):
+    sc = _scenario(duration, outage=outage)
+    values = []
+    for seed in seeds:
+        rec = run_episode(sc, AlongTrackFilter(), seed=seed)
+        values.append(_nees2(*_along_errors(rec)))
+    return np.array(values)
+
+
+def test_nees_consistency_short():
+    nees = _nees_run(range(4), 100.0, [50.0, 90.0])
+    avg = nees[:, 100::100].mean(axis=0)  # once per second, averaged over seeds
+    lo, hi = chi2.ppf(0.025, 2 * 4) / 4, chi2.ppf(0.975, 2 * 4) / 4
+    inside = np.mean((avg > lo) & (avg < hi))
+    assert inside > 0.8
+    assert 1.0 < nees.mean() < 3.5
+
+
+@pytest.mark.slow
+def test_nees_consistency_paper_scenario_20_seeds():
+    """Full paper-2012 (1000 s, outage 400-700 s), 20 seeds: 95 % chi-square bounds."""
+    n = 20
+    nees = _nees_run(range(n), 1000.0, [400.0, 700.0])
+    avg = nees[:, 99::100].mean(axis=0)
+    lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
+    inside = np.mean((avg > lo) & (avg < hi))
+    assert inside > 0.9
