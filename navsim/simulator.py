@@ -301,6 +301,8 @@ class Simulator:
         self.seed_entropy = seq.entropy
         self.rngs = dict(zip(STREAMS, (np.random.Generator(np.random.PCG64(s)) for s in seq.spawn(len(STREAMS)))))
         self._step = 0
+        self._served = 0
+        self._buffer, self._buffer_pos = None, 0
         if isinstance(self.profile, ExternalMotion):
             m = self.scenario.motion
             self.profile.reset(0.0, m.start_s_m, m.speed_mps, 0.0)
@@ -399,6 +401,36 @@ class Simulator:
         self._step += n
         return Chunk(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
                      gnss_step=epoch_steps, receiver_outage=receiver_outage)
+
+    def step(self, buffer_steps: int = 1000) -> tuple[Chunk, int]:
+        """Serve the next single step as ``(chunk, i)``: step ``i`` of a buffered chunk.
+
+        For scripted motion the simulator generates ``buffer_steps`` ahead in one
+        vectorised pass and serves them one by one (the numbers are those of any other
+        chunking); with external motion each call generates exactly one step after the
+        caller's :meth:`push_motion`. :attr:`served` counts the steps handed out.
+        Do not mix with :meth:`advance` within an episode.
+        """
+        self._require_reset()
+        if isinstance(self.profile, ExternalMotion):
+            chunk = self.advance(1)
+            self._served += 1
+            return chunk, 0
+        if self._buffer is None or self._buffer_pos >= len(self._buffer):
+            if self._served >= self.timing.steps:
+                raise RuntimeError("the episode is over: call reset()")
+            self._buffer = self.advance(buffer_steps)
+            self._buffer_pos = 0
+        i = self._buffer_pos
+        self._buffer_pos += 1
+        self._served += 1
+        return self._buffer, i
+
+    @property
+    def served(self) -> int:
+        """Steps handed out by :meth:`step` since the last reset."""
+        self._require_reset()
+        return self._served
 
     def chunks(self, chunk_steps: int = 10_000) -> Iterator[Chunk]:
         """Iterate over the rest of the episode in chunks of ``chunk_steps`` steps."""
