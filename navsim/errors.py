@@ -18,6 +18,7 @@ __all__ = [
     "TrackError",
     "DependencyNotInstalled",
     "check_positive",
+    "check_nonnegative",
     "check_multiple",
 ]
 
@@ -71,6 +72,17 @@ def check_positive(field: str, value: float) -> float:
         raise ConfigError(field, "a positive number", value) from None
     if not (number > 0.0 and number < float("inf")):
         raise ConfigError(field, "a positive finite number", value)
+    return number
+
+
+def check_nonnegative(field: str, value) -> float:
+    """Return ``float(value)`` if it is finite and >= 0, else raise :class:`ConfigError`."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(field, "a non-negative number", value) from None
+    if not (number >= 0.0 and number < float("inf")):
+        raise ConfigError(field, "a non-negative finite number", value)
     return number
 
 

@@ -74,7 +74,7 @@ from typing import Sequence
 import numpy as np
 
 from ..earth import WGS84, EarthModel, mat_en
-from ..errors import ConfigError
+from ..errors import ConfigError, check_nonnegative
 
 __all__ = [
     "C_LIGHT",
@@ -647,16 +647,6 @@ def sky_geometry(
 
 
 # ====================================================================== error model
-def _check_nonneg(field_name: str, value: float) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(field_name, "a non-negative number", value) from None
-    if not (number >= 0.0 and np.isfinite(number)):
-        raise ConfigError(field_name, "a non-negative finite number", value)
-    return number
-
-
 @dataclass(frozen=True, slots=True)
 class GnssErrorModel:
     """Truth-side GNSS error model (what the simulator draws, not what a filter assumes).
@@ -715,14 +705,14 @@ class GnssErrorModel:
             "troposphere_zenith_m",
             "multipath_sigma_m",
         ):
-            object.__setattr__(self, name, _check_nonneg(f"gnss.{name}", getattr(self, name)))
+            object.__setattr__(self, name, check_nonnegative(f"gnss.{name}", getattr(self, name)))
         for name in (
             "ionosphere_shell_height_m",
             "troposphere_scale_height_m",
             "multipath_elevation_scale_deg",
             "multipath_time_constant_s",
         ):
-            value = _check_nonneg(f"gnss.{name}", getattr(self, name))
+            value = check_nonnegative(f"gnss.{name}", getattr(self, name))
             if value == 0.0:
                 raise ConfigError(f"gnss.{name}", "a positive number", getattr(self, name))
             object.__setattr__(self, name, value)

@@ -55,7 +55,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, check_nonnegative
 
 __all__ = ["OutageModel", "OutageState", "visibility", "canyon_mask_elevation"]
 
@@ -69,16 +69,6 @@ def _pairs(field_name: str, value: Any, width: int) -> tuple[tuple[float, ...], 
         if len(row) != width or not all(np.isfinite(row)):
             raise ConfigError(field_name, f"rows of {width} finite numbers", value)
     return rows
-
-
-def _nonneg(field_name: str, value: Any) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(field_name, "a non-negative number", value) from None
-    if not (number >= 0.0 and np.isfinite(number)):
-        raise ConfigError(field_name, "a non-negative finite number", value)
-    return number
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,8 +152,8 @@ class OutageModel:
             ) from None
         object.__setattr__(self, "masked_prns", prns)
         for who in ("receiver", "satellite"):
-            out = _nonneg(f"outages.{who}_mean_outage_s", getattr(self, f"{who}_mean_outage_s"))
-            avail = _nonneg(
+            out = check_nonnegative(f"outages.{who}_mean_outage_s", getattr(self, f"{who}_mean_outage_s"))
+            avail = check_nonnegative(
                 f"outages.{who}_mean_available_s", getattr(self, f"{who}_mean_available_s")
             )
             if (out > 0.0) != (avail > 0.0):
