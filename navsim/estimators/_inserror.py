@@ -97,8 +97,9 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..errors import ConfigError
-from ..rotations import hpr_from_mat_nb, mat_nb_from_hpr, mat_to_quat, quat_to_mat
-from ..strapdown.ins import InsState, integrate
+from ..rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_to_mat
+from ..strapdown import ins as _ins
+from ..strapdown.ins import InsState
 from .base import NominalImu
 
 __all__ = [
@@ -118,6 +119,8 @@ __all__ = [
     "compensate_increments",
     "solution_rows",
     "state_from_prior",
+    "BodyTerms",
+    "body_terms",
     "ErrorStateIns",
     "nis_threshold",
 ]
@@ -294,6 +297,15 @@ def error_dynamics(lat: float, h: float, velocity_n, mat_nb, specific_force_n, e
     return F
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) arrays (np.cross is slow on small arrays)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _skew3(v) -> np.ndarray:
     x, y, z = v
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -342,6 +354,20 @@ class _Series:
         tau = tau[:, None, None]
         eye = np.eye(N_STATES)[rows]
         return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * self.F3s[rows]))
+
+    def nav_polynomial(self, P0: np.ndarray) -> np.ndarray:
+        """Coefficients (7, 81) of the navigation block of P(tau) = Phi P0 Phi^T + Qd as a
+        polynomial in tau: ``P9(tau) = (tau^p)_p @ coefficients`` (p = 0..6)."""
+        M = (np.eye(N_STATES)[NAV], self.F[NAV], self.F2h[NAV], self.F3s[NAV])  # Phi9 = sum tau^a M_a
+        MP = [m @ P0 for m in M]
+        coef = np.zeros((7, 9, 9))
+        for a in range(4):
+            for b in range(4):
+                coef[a + b] += MP[a] @ M[b].T
+        b9 = (NAV, NAV)
+        for p, q in enumerate((self.q1, self.q2, self.q3, self.q4, self.q5), start=1):
+            coef[p] += q[b9]
+        return coef.reshape(7, 81)
 
     def qd(self, tau: np.ndarray, block=slice(None)) -> np.ndarray:
         """Qd(tau) block, shape (k, n, n)."""
@@ -441,15 +467,134 @@ def compensate_increments(dtheta_sub, dv_sub, dtheta_r, dv_r, gyro_bias, accel_b
 
 
 def solution_rows(lat, lon, h, velocity_n, quat_nb) -> np.ndarray:
-    """(n, 9) rows ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]`` of INS outputs."""
-    heading, pitch, roll = hpr_from_mat_nb(quat_to_mat(quat_nb))
-    return np.column_stack([lat, lon, h, velocity_n, heading, pitch, roll])
+    """(n, 9) rows ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]`` of INS outputs.
+
+    Heading, pitch and roll as :func:`navsim.rotations.hpr_from_mat_nb`, from the five
+    matrix entries they need (``C01, C11, C20, C21, C22`` of ``quat_to_mat``).
+    """
+    q = np.asarray(quat_nb, dtype=float)
+    q0, q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty((len(q), 9))
+    out[:, 0], out[:, 1], out[:, 2] = lat, lon, h
+    out[:, 3:6] = velocity_n
+    c01 = 2.0 * (q1 * q2 - q0 * q3)
+    c11 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c20 = 2.0 * (q1 * q3 - q0 * q2)
+    c21 = 2.0 * (q2 * q3 + q0 * q1)
+    c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    out[:, 6] = np.arctan2(c01, c11)
+    out[:, 7] = np.arcsin(np.clip(c21, -1.0, 1.0))
+    out[:, 8] = np.arctan2(-c20, c22)
+    return out
 
 
 def state_from_prior(prior) -> InsState:
     """The INS state of a :class:`navsim.simulator.Prior`."""
     quat = mat_to_quat(mat_nb_from_hpr(prior.heading, prior.pitch, prior.roll))
     return InsState(prior.lat, prior.lon, prior.h, np.asarray(prior.velocity_n, dtype=float), quat)
+
+
+# ============================================================================ body terms
+@dataclass(frozen=True, slots=True)
+class BodyTerms:
+    """Raw body-frame strapdown terms of n navigation steps (no bias removed).
+
+    Attributes
+    ----------
+    phi : (n, 3) rotation vector over each step, rad (coning algorithm).
+    dv_b : (n, 3) velocity increment DeltaV + deltaV_s + second-order rotation term, m/s.
+    ds_b : (n, 3) or None, body-frame double integral of the exact position forms, m.
+    rule : "rectangle", "trapezoid" or None (exact forms).
+    dtheta1, dv1 : (n, 3) first-order increments over each step (rad, m/s).
+    dt : float, step, s.
+    """
+
+    phi: np.ndarray
+    dv_b: np.ndarray
+    ds_b: np.ndarray | None
+    rule: str | None
+    dtheta1: np.ndarray
+    dv1: np.ndarray
+    dt: float
+
+    def __len__(self) -> int:
+        return len(self.phi)
+
+    def compensated(self, gyro_bias, accel_bias, start: int = 0, stop: int | None = None):
+        """Terms of steps start:stop with constant biases removed, to first order in the bias.
+
+        For a constant rate omega and force f over the step the exact terms are
+        ``Phi = omega T``, ``dV = f T + (omega x f) T^2/2 + ...`` and
+        ``dS = f T^2/2 + (omega x f) T^3/6 + ...``, so replacing omega, f by
+        omega - b_g, f - b_a changes them by::
+
+            dPhi = -b_g T
+            ddV  = -b_a T - (b_g x DV + DTheta x b_a) / 2                    (first-order sculling)
+            ddS  = -b_a T^2/2 - T (b_g x DV + DTheta x b_a) / 6
+
+        (DTheta, DV the raw first-order increments). What is left is of order
+        ``b x omega' T^3`` per step: for 1e-3 rad/s of bias (consumer MEMS) and a 0.01 s
+        step below 1e-10 rad or m/s per step. Compensating the raw increments instead
+        (:func:`compensate_increments`, then the strapdown algorithms) agrees to that order
+        (tests/estimators/test_ins_only.py); this form lets one batch of body terms serve
+        every bias estimate of the batch.
+
+        Returns
+        -------
+        quat_body (k, 4), dv_body (k, 3), ds_body (k, 3) or None, dv_first (k, 3)
+        """
+        sl = slice(start, stop)
+        T = self.dt
+        bg = np.asarray(gyro_bias, dtype=float)
+        ba = np.asarray(accel_bias, dtype=float)
+        th, dv = self.dtheta1[sl], self.dv1[sl]
+        phi = self.phi[sl] - bg * T
+        cross = _cross(np.broadcast_to(bg, dv.shape), dv) + _cross(th, np.broadcast_to(ba, th.shape))
+        dv_b = self.dv_b[sl] - ba * T - 0.5 * cross
+        ds_b = None if self.ds_b is None else self.ds_b[sl] - ba * (0.5 * T * T) - (T / 6.0) * cross
+        return quat_from_rotvec(phi), dv_b, ds_b, dv - ba * T
+
+
+def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float = 0.01, coning=None,
+               sculling=None, position=None) -> BodyTerms:
+    """The body-frame terms of :func:`navsim.strapdown.ins.integrate` for n steps.
+
+    The same computation as the strapdown module's (registry methods chosen by
+    :func:`navsim.strapdown.ins.resolve_methods`, plus the second-order rotation terms
+    ``Phi x (Phi x DV) / 6`` and ``dt Phi x (Phi x DV) / 24``), but returning the rotation
+    vector (not its quaternion) so that biases can be removed linearly afterwards.
+    tests/estimators/test_ins_only.py checks that with zero bias
+    :meth:`ErrorStateIns.advance` reproduces ``integrate`` exactly.
+    """
+    from ..strapdown import CONING, POSITION, SCULLING
+
+    def lookup(registry, method):
+        if callable(method):
+            return method
+        try:
+            return registry[method]
+        except (KeyError, TypeError):
+            raise ConfigError("strapdown method", f"a callable or one of {sorted(registry)}", method) from None
+
+    arrays = [None if a is None else np.asarray(a, dtype=float) for a in (dtheta_sub, dv_sub, dtheta_r, dv_r)]
+    th_s, dv_s, th_r, dv_rr = arrays
+    coning, sculling, position = _ins.resolve_methods(coning, sculling, position, *arrays)
+    phi = np.asarray(lookup(CONING, coning)(th_s, th_r, dt), dtype=float)
+    dv_b = np.asarray(lookup(SCULLING, sculling)(th_s, dv_s, th_r, dv_rr, dt), dtype=float)
+    rule = position if isinstance(position, str) and position in ("rectangle", "trapezoid") else None
+    n = len(phi)
+    ds_b = None
+    if rule is None:
+        eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+        ds_b = np.asarray(lookup(POSITION, position)(np.zeros((n, 3)), eye, th_s, dv_s, th_r, dv_rr, dt),
+                          dtype=float)
+    dtheta1 = th_s.sum(axis=1) if th_s is not None else th_r[:, 0]
+    dv1 = dv_s.sum(axis=1) if dv_s is not None else dv_rr[:, 0]
+    second = _cross(phi, _cross(phi, dv1))  # second-order rotation term (strapdown.ins)
+    dv_b = dv_b + second / 6.0
+    if ds_b is not None:
+        ds_b = ds_b + (dt / 24.0) * second
+    return BodyTerms(phi, dv_b, ds_b, rule, dtheta1, dv1, float(dt))
 
 
 # ============================================================================ the engine
@@ -519,10 +664,12 @@ class ErrorStateIns:
         self._f_sum = np.zeros(3)
         self._f_count = 0
         self._P0 = P
+        self._pending = None
         self._j = 0  # steps into the interval
         st = self.state
         F = error_dynamics(st.lat, st.h, st.velocity_n, quat_to_mat(st.quat_nb), self._f_n, self.earth, self.noise)
         self._series = _Series.build(F, self.Qc)
+        self._poly = None  # navigation-block polynomial of P(tau), built on first use
 
     def _full_covariance(self, j: int) -> np.ndarray:
         """P(tau = j dt) of the current interval (15, 15), symmetrised and guarded."""
@@ -544,9 +691,15 @@ class ErrorStateIns:
     @property
     def covariance(self) -> np.ndarray:
         """The full 15 x 15 covariance at the last processed step."""
-        return self._full_covariance(self._j)
+        if self._pending is not None:
+            return self._pending
+        return self._P0 if self._j == 0 else self._full_covariance(self._j)
 
     # -- propagation -------------------------------------------------------------------
+    def prepare(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> BodyTerms:
+        """Raw (uncompensated) body-frame strapdown terms of n steps, for :meth:`advance_body`."""
+        return body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, self.dt, **self.methods)
+
     def advance(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> tuple[np.ndarray, np.ndarray]:
         """Process n navigation steps of IMU data (arrays as in :class:`MeasurementBatch`).
 
@@ -557,30 +710,45 @@ class ErrorStateIns:
         covariance : ndarray (n, 9, 9)
             Navigation block of P at each step end.
         """
-        th_s, dv_s, th_r, dv_rr = compensate_increments(dtheta_sub, dv_sub, dtheta_r, dv_r,
-                                                        self.gyro_bias, self.accel_bias, self.dt)
-        sol = integrate(self.state, th_s, dv_s, th_r, dv_rr, dt=self.dt, earth=self.earth, **self.methods)
+        return self.advance_body(self.prepare(dtheta_sub, dv_sub, dtheta_r, dv_r))
+
+    def advance_body(self, body: BodyTerms, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`advance` over steps ``start:stop`` of precomputed :class:`BodyTerms`
+        (compute them once per batch with :meth:`prepare`; the current bias estimates are
+        applied here)."""
+        if self._pending is not None:
+            self._start_interval(self._pending)
+        quat_b, dv_b, ds_b, dv_first = body.compensated(self.gyro_bias, self.accel_bias, start, stop)
+        sol = _ins._run(self.state, quat_b, dv_b, ds_b, body.rule, self.dt, self.earth)
         n = len(sol) - 1
         rows = solution_rows(sol.lat[1:], sol.lon[1:], sol.h[1:], sol.velocity_n[1:], sol.quat_nb[1:])
         # specific force in ENU per step, C(k+1) dV_k / dt (for F of the next interval)
-        dv_first = dv_s.sum(axis=1) if dv_s is not None else dv_rr[:, 0]
-        f_dv = np.einsum("kij,kj->ki", quat_to_mat(sol.quat_nb[1:]), dv_first)
+        q = sol.quat_nb[1:]
+        t2 = 2.0 * _cross(q[:, 1:], dv_first)  # C dv = dv + q0 t + q_v x t, t = 2 q_v x dv
+        f_dv = dv_first + q[:, :1] * t2 + _cross(q[:, 1:], t2)
         cov = np.empty((n, 9, 9))
         i = 0
         while i < n:
             take = min(self.interval_steps - self._j, n - i)
             tau = (self._j + 1 + np.arange(take)) * self.dt
-            phi9 = self._series.phi(tau, NAV)  # (k, 9, 15)
-            cov[i:i + take] = np.einsum("kij,jl,kml->kim", phi9, self._P0, phi9) + self._series.qd(tau, NAV)
+            if self._poly is None:
+                self._poly = self._series.nav_polynomial(self._P0)
+            powers = tau[:, None] ** np.arange(7)  # P9(tau) = sum_p tau^p coef_p
+            cov[i:i + take] = (powers @ self._poly).reshape(take, 9, 9)
             self._f_sum = self._f_sum + f_dv[i:i + take].sum(axis=0)
             self._f_count += take
             self._j += take
             i += take
             if self._j == self.interval_steps:
-                # the interval ends: its end covariance starts the next one (state there)
+                # the interval ends: its end covariance starts the next one (state there);
+                # at the end of the data the start waits for the next call (an update
+                # may come first and restart the interval anyway)
                 P_end = self._full_covariance(self._j)
-                self.state = sol.state(i)
-                self._start_interval(P_end)
+                if i < n:
+                    self.state = sol.state(i)
+                    self._start_interval(P_end)
+                else:
+                    self._pending = P_end
         self.state = sol.final
         self.steps += n
         if not (math.isfinite(self.state.lat) and np.all(np.isfinite(self.state.velocity_n))):
@@ -604,7 +772,7 @@ class ErrorStateIns:
         The covariance interval restarts here with the updated covariance and the
         corrected state.
         """
-        P = self._full_covariance(self._j)
+        P = self.covariance
         try:
             dx, P_new, nis = joseph_update(P, H, R, innovation)
         except np.linalg.LinAlgError:

@@ -1,0 +1,295 @@
+"""GNSS only: single-epoch least-squares fixes, and a constant-velocity Kalman filter on them.
+
+:class:`GnssLeastSquares`
+    At each epoch with at least ``min_satellites`` valid channels: the position / clock
+    fix :func:`navsim.sensors.gnss.least_squares_fix` and the velocity / clock-drift fix
+    :func:`navsim.sensors.gnss.velocity_fix` (the receiver clock is estimated every
+    epoch, so it needs no model). Between epochs (and through outages) the last fix is
+    **extrapolated with the last velocity fix** (``extrapolate=True``, the default;
+    ``False`` holds it). Covariance: ``sigma_rho^2 (H^T H)^-1`` and
+    ``sigma_dot^2 (H^T H)^-1`` rotated to ENU, the position part growing as
+    ``P_pos + tau^2 P_vel`` while extrapolating. Before the first fix the prior is
+    extrapolated the same way with the prior covariance.
+:class:`GnssConstantVelocity`
+    A 6-state constant-velocity Kalman filter (filterpy ``KalmanFilter``) in ECEF,
+    ``[r_e, v_e]`` with white-acceleration process noise of PSD ``accel_psd`` per axis,
+    updated at each epoch with the LS position and velocity fixes (R from the fix
+    geometry and the nominal sigmas). Between epochs the estimate is the filter's
+    prediction to the step time (closed form, the same as filterpy's predict over that
+    span).
+
+Neither estimates attitude: heading, pitch and roll are ``nan`` and so are the attitude
+rows and columns of the 9 x 9 covariance (metrics skip them). The course over ground
+``atan2(vE, vN)`` is a heading only for a vehicle without sideslip; it is not reported.
+
+References
+----------
+.. [1] Misra P., Enge P., Global Positioning System: Signals, Measurements and
+       Performance, 2nd ed., 2006, ch. 6 (least-squares position, DOP).
+.. [2] Bar-Shalom Y., Li X.R., Kirubarajan T., Estimation with Applications to Tracking
+       and Navigation, 2001, section 6.2.2 (continuous white-noise acceleration model).
+.. [3] Labbe R., filterpy (KalmanFilter), https://github.com/rlabbe/filterpy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..earth import mat_en
+from ..errors import ConfigError
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .loosely import gnss_fixes
+
+__all__ = ["GnssLeastSquares", "GnssConstantVelocity"]
+
+_NAN_ATT = np.full(3, np.nan)
+
+
+def _check_min_satellites(value) -> int:
+    if int(value) != value or value < 4:
+        raise ConfigError("min_satellites", "an integer >= 4", value)
+    return int(value)
+
+
+def _covariance9(p_pos_n: np.ndarray, p_vel_n: np.ndarray, p_cross_n: np.ndarray | None = None) -> np.ndarray:
+    cov = np.full((9, 9), np.nan)
+    cov[:3, :3], cov[3:6, 3:6] = p_pos_n, p_vel_n
+    if p_cross_n is None:
+        cov[:3, 3:6] = cov[3:6, :3] = 0.0
+    else:
+        cov[:3, 3:6], cov[3:6, :3] = p_cross_n, p_cross_n.T
+    return cov
+
+
+def _single(m: Measurement) -> MeasurementBatch:
+    gnss = ((0, m.gnss),) if m.gnss is not None else ()
+    return MeasurementBatch(np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
+                            m.dtheta_sub[None], m.dv_sub[None], gnss)
+
+
+def _estimate(t: float, row: np.ndarray, cov: np.ndarray, nis: float, dof: int, extra: dict) -> Estimate:
+    has = not math.isnan(nis)
+    return Estimate(t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8], covariance=cov,
+                    nis=float(nis) if has else None, nis_dof=int(dof) if has else None, extra=extra)
+
+
+class GnssLeastSquares:
+    """Per-epoch LS fix, extrapolated (or held) between epochs.
+
+    Parameters
+    ----------
+    extrapolate : bool
+        True: position extrapolated with the last velocity fix between epochs;
+        False: the last fix is held (its covariance is not grown).
+    min_satellites : int
+        Fewest valid channels for a fix (>= 4).
+    measurement_scale : float
+        Factor on the nominal pseudorange and Doppler sigmas.
+    """
+
+    def __init__(self, extrapolate: bool = True, min_satellites: int = 4, measurement_scale: float = 1.0) -> None:
+        self.extrapolate = bool(extrapolate)
+        self.min_satellites = _check_min_satellites(min_satellites)
+        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
+            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
+        self.measurement_scale = float(measurement_scale)
+        self.context: Context | None = None
+
+    def reset(self, context: Context, prior) -> None:
+        """Start from the prior position, velocity and covariance."""
+        self.context = context
+        self.earth = context.earth
+        self.sigma_pos = self.measurement_scale * context.gnss.pseudorange_sigma_m
+        self.sigma_vel = self.measurement_scale * context.gnss.doppler_sigma_mps
+        self._initial_e = self.earth.geodetic_to_ecef(prior.lat, prior.lon, prior.h)
+        cov = np.asarray(prior.covariance, dtype=float)
+        # the last fix: time, ECEF position and velocity, ENU covariances (at the fix)
+        self._t = float(prior.t)
+        self._pos_e = self._initial_e.copy()
+        m = mat_en(prior.lat, prior.lon)
+        self._vel_e = m.T @ np.asarray(prior.velocity_n, dtype=float)
+        self._p_pos, self._p_vel = cov[:3, :3].copy(), cov[3:6, 3:6].copy()
+        self._n_valid = 0
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step."""
+        out = self.step_batch(_single(measurement))
+        return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
+                         {"n_valid": self._n_valid})
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        """n steps at once (fixes of all epochs in one vectorised call)."""
+        if self.context is None:
+            raise ConfigError("GnssLeastSquares", "reset(context, prior) before stepping", "no reset")
+        n = len(batch)
+        solution = np.empty((n, 9))
+        covariance = np.empty((n, 9, 9))
+        epochs = list(batch.gnss)
+        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
+                                                                 self._initial_e)
+        t = np.asarray(batch.t, dtype=float)
+        start = 0
+        marks = [(index, e) for e, (index, _) in enumerate(epochs) if ok[e]] + [(n, -1)]
+        for index, e in marks:
+            stop = min(index, n)
+            if stop > start:
+                self._extrapolate(t[start:stop], solution[start:stop], covariance[start:stop])
+            if e < 0:
+                break
+            self._pos_e, self._vel_e, self._t = pos_e[e], vel_e[e], float(t[index])
+            self._n_valid = int(n_valid[e])
+            lat, lon, h = (float(x) for x in self.earth.ecef_to_geodetic(self._pos_e))
+            m = mat_en(lat, lon)
+            self._p_pos = self.sigma_pos**2 * (m @ cov_pos[e] @ m.T)
+            self._p_vel = self.sigma_vel**2 * (m @ cov_vel[e] @ m.T)
+            self._extrapolate(t[index:index + 1], solution[index:index + 1], covariance[index:index + 1])
+            start = index + 1
+        return EstimateBatch(solution, covariance, np.full(n, np.nan), np.zeros(n, dtype=int))
+
+    def _extrapolate(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
+        tau = (t - self._t) if self.extrapolate else np.zeros_like(t)
+        pos_e = self._pos_e + tau[:, None] * self._vel_e
+        lat, lon, h = self.earth.ecef_to_geodetic(pos_e)
+        m = mat_en(lat, lon)  # (k, 3, 3)
+        solution[:, 0], solution[:, 1], solution[:, 2] = lat, lon, h
+        solution[:, 3:6] = m @ self._vel_e
+        solution[:, 6:] = np.nan
+        covariance[:] = _covariance9(self._p_pos, self._p_vel)
+        # P_pos(tau) = P_pos + tau^2 P_vel, cov(pos, vel) = tau P_vel
+        covariance[:, :3, :3] += tau[:, None, None] ** 2 * self._p_vel
+        covariance[:, :3, 3:6] = covariance[:, 3:6, :3] = tau[:, None, None] * self._p_vel
+
+
+class GnssConstantVelocity:
+    """Constant-velocity Kalman filter (filterpy) on the LS position and velocity fixes.
+
+    Parameters
+    ----------
+    accel_psd : float
+        White-acceleration PSD per ECEF axis, m^2/s^3 (the vehicle's unmodelled
+        acceleration; 0.1 suits a train or car at steady speed).
+    use_velocity : bool
+        Also update with the Doppler velocity fix.
+    min_satellites : int
+        Fewest valid channels for an update.
+    measurement_scale : float
+        Factor on the nominal GNSS sigmas.
+    """
+
+    def __init__(self, accel_psd: float = 0.1, use_velocity: bool = True, min_satellites: int = 4,
+                 measurement_scale: float = 1.0) -> None:
+        if not (accel_psd >= 0.0 and math.isfinite(accel_psd)):
+            raise ConfigError("accel_psd", "a non-negative finite PSD, m^2/s^3", accel_psd)
+        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
+            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
+        self.accel_psd = float(accel_psd)
+        self.use_velocity = bool(use_velocity)
+        self.min_satellites = _check_min_satellites(min_satellites)
+        self.measurement_scale = float(measurement_scale)
+        self.kf = None
+
+    def reset(self, context: Context, prior) -> None:
+        """Initialise the filter from the prior (ENU covariance rotated to ECEF)."""
+        from filterpy.kalman import KalmanFilter
+
+        self.earth = context.earth
+        self.sigma_pos = self.measurement_scale * context.gnss.pseudorange_sigma_m
+        self.sigma_vel = self.measurement_scale * context.gnss.doppler_sigma_mps
+        m = mat_en(prior.lat, prior.lon)
+        big = np.zeros((6, 6))
+        big[:3, :3] = big[3:, 3:] = m.T
+        kf = KalmanFilter(dim_x=6, dim_z=6 if self.use_velocity else 3)
+        pos_e = self.earth.geodetic_to_ecef(prior.lat, prior.lon, prior.h)
+        kf.x = np.concatenate([pos_e, m.T @ np.asarray(prior.velocity_n, dtype=float)])
+        kf.P = big @ np.asarray(prior.covariance, dtype=float)[:6, :6] @ big.T
+        kf.H = np.eye(6)[: kf.dim_z]
+        self.kf = kf
+        self._initial_e = pos_e
+        self._t = float(prior.t)
+        self._n_valid = 0
+
+    def _fq(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        # x' = F x: r += v tau; Q of white acceleration q: [[t^3/3, t^2/2], [t^2/2, t]] q
+        F = np.eye(6)
+        F[:3, 3:] = tau * np.eye(3)
+        q = self.accel_psd
+        Q = np.zeros((6, 6))
+        Q[:3, :3] = q * tau**3 / 3.0 * np.eye(3)
+        Q[:3, 3:] = Q[3:, :3] = q * tau**2 / 2.0 * np.eye(3)
+        Q[3:, 3:] = q * tau * np.eye(3)
+        return F, Q
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step."""
+        out = self.step_batch(_single(measurement))
+        return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
+                         {"n_valid": self._n_valid})
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        """n steps at once: filterpy predict/update at epochs, closed-form prediction between."""
+        if self.kf is None:
+            raise ConfigError("GnssConstantVelocity", "reset(context, prior) before stepping", "no reset")
+        kf = self.kf
+        n = len(batch)
+        solution = np.empty((n, 9))
+        covariance = np.empty((n, 9, 9))
+        nis = np.full(n, np.nan)
+        nis_dof = np.zeros(n, dtype=int)
+        epochs = list(batch.gnss)
+        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
+                                                                 self._initial_e)
+        t = np.asarray(batch.t, dtype=float)
+        start = 0
+        marks = [(index, e) for e, (index, _) in enumerate(epochs) if ok[e]] + [(n, -1)]
+        for index, e in marks:
+            stop = min(index, n)
+            if stop > start:
+                self._predicted(t[start:stop], solution[start:stop], covariance[start:stop])
+            if e < 0:
+                break
+            # predict to the epoch: x = F x, P = F P F^T + Q
+            kf.F, kf.Q = self._fq(float(t[index]) - self._t)
+            kf.predict()
+            self._t = float(t[index])
+            # update: z = [r_fix, v_fix], R from the fix geometry
+            z = np.concatenate([pos_e[e], vel_e[e]])[: kf.dim_z]
+            R = np.zeros((6, 6))
+            R[:3, :3] = self.sigma_pos**2 * cov_pos[e]
+            R[3:, 3:] = self.sigma_vel**2 * cov_vel[e]
+            R = R[: kf.dim_z, : kf.dim_z]
+            kf.update(z, R=0.5 * (R + R.T))
+            kf.P = 0.5 * (kf.P + kf.P.T)
+            y = np.asarray(kf.y, dtype=float).reshape(-1)
+            nis[index] = float(y @ np.linalg.solve(kf.S, y))
+            nis_dof[index] = kf.dim_z
+            self._n_valid = int(n_valid[e])
+            self._predicted(t[index:index + 1], solution[index:index + 1], covariance[index:index + 1])
+            start = index + 1
+        return EstimateBatch(solution, covariance, nis, nis_dof)
+
+    def _predicted(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
+        """The prediction of the current filter state to times t (no state change)."""
+        kf = self.kf
+        x = np.asarray(kf.x, dtype=float).reshape(-1)
+        P = kf.P
+        tau = t - self._t
+        pos_e = x[:3] + tau[:, None] * x[3:]
+        lat, lon, h = self.earth.ecef_to_geodetic(pos_e)
+        m = mat_en(lat, lon)  # (k, 3, 3)
+        solution[:, 0], solution[:, 1], solution[:, 2] = lat, lon, h
+        solution[:, 3:6] = m @ x[3:]
+        solution[:, 6:] = np.nan
+        T = tau[:, None, None]
+        q = self.accel_psd
+        # P(tau) = F P F^T + Q blocks with F = [[I, tau I], [0, I]]
+        p_rr = P[:3, :3] + T * (P[:3, 3:] + P[3:, :3]) + T**2 * P[3:, 3:] + q * T**3 / 3.0 * np.eye(3)
+        p_rv = P[:3, 3:] + T * P[3:, 3:] + q * T**2 / 2.0 * np.eye(3)
+        p_vv = P[3:, 3:] + q * T * np.eye(3)
+        mt = np.swapaxes(m, -1, -2)
+        covariance[:] = np.nan
+        covariance[:, :3, :3] = m @ p_rr @ mt
+        covariance[:, 3:6, 3:6] = m @ p_vv @ mt
+        covariance[:, :3, 3:6] = m @ p_rv @ mt
+        covariance[:, 3:6, :3] = np.swapaxes(covariance[:, :3, 3:6], -1, -2)

@@ -1,0 +1,244 @@
+"""Loosely coupled INS/GNSS: a 15-state closed-loop error-state EKF aided by GNSS fixes.
+
+The INS (:func:`navsim.strapdown.ins.integrate`, most accurate methods the data allow)
+runs on bias-compensated IMU data; a 15-state error-state Kalman filter (position,
+velocity, attitude, gyro bias, accelerometer bias; :mod:`navsim.estimators._inserror`)
+estimates its errors and feeds them back after every update (closed loop), so the error
+state is zero between updates and only the covariance is propagated.
+
+Measurements, at every GNSS epoch with at least ``min_satellites`` valid channels:
+
+* position: the single-epoch least-squares fix :func:`navsim.sensors.gnss.least_squares_fix`
+  (position and receiver clock bias, so a receiver clock error is absorbed whether or not
+  ``context.gnss.clock_modelled``), as ``y = mat_en (r_ins_e - r_fix_e) = dr + v``;
+  ``R = sigma_rho^2 mat_en (H^T H)^-1_pos mat_en^T`` from the fix geometry and the nominal
+  pseudorange sigma;
+* velocity (``use_velocity``): :func:`navsim.sensors.gnss.velocity_fix` from the Doppler
+  pseudorange rates (velocity and clock drift), ``y = v_ins_n - mat_en v_fix_e``,
+  ``R = sigma_dot^2 mat_en (H^T H)^-1_vel mat_en^T``.
+
+Both are treated as white and uncorrelated with each other; time-correlated errors of the
+standalone preset (multipath, ionosphere, troposphere) are not modelled, so the filter is
+consistent on white-noise GNSS (the "paper-2012" preset) and optimistic otherwise
+(``measurement_scale`` inflates R). The antenna is at the IMU (no lever arm).
+
+Process noise: :meth:`ImuNoise.from_nominal` (ARW, VRW, Gauss-Markov biases with the
+nominal sigma and correlation time, rate random walk). Update in Joseph form, covariance
+symmetrised and guarded; a divergence becomes ``extra["diverged"]`` (and the attribute
+``diverged``): a non-finite or non-positive covariance, a non-finite state, or
+``divergence_epochs`` consecutive updates whose NIS exceeds the chi-square quantile of
+tail probability ``divergence_probability``.
+
+Speed (``step_batch``): one strapdown call per GNSS interval, the LS fixes of all epochs
+of the batch in one vectorised call, and the covariance advanced once per covariance
+interval (:class:`~navsim.estimators._inserror.ErrorStateIns`). ``step`` runs the same
+code on one step, so both give the same numbers.
+
+References
+----------
+.. [1] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+       Systems, 2nd ed., 2013, sections 14.1-14.2 (INS/GNSS integration architectures,
+       closed-loop correction) and 14.2.6 (loosely coupled measurement model).
+.. [2] Bar-Shalom Y., Li X.R., Kirubarajan T., Estimation with Applications to Tracking
+       and Navigation, 2001, section 5.4 (NIS consistency test).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..earth import mat_en
+from ..errors import ConfigError
+from ..sensors.gnss import least_squares_fix, velocity_fix
+from ._inserror import NAV, N_STATES, ErrorStateIns, ImuNoise, nis_threshold
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+
+__all__ = ["LooselyCoupledEkf", "gnss_fixes"]
+
+
+def gnss_fixes(observations, min_satellites: int = 4, initial_e=None):
+    """Position and velocity fixes of a list of :class:`GnssObservation` (vectorised).
+
+    ``initial_e`` (3,): a starting point of the Gauss-Newton iteration for every epoch
+    (e.g. the prior position: fewer iterations than from the Earth's centre).
+
+    Returns
+    -------
+    ok : (k,) bool, at least ``min_satellites`` valid channels and both fixes converged
+    position_e : (k, 3) m. cov_pos : (k, 3, 3) unit-variance position covariance (H^T H)^-1.
+    velocity_e : (k, 3) m/s. cov_vel : (k, 3, 3) unit-variance velocity covariance.
+    n_valid : (k,) int.
+    """
+    k = len(observations)
+    if k == 0:
+        z = np.zeros((0, 3))
+        return np.zeros(0, bool), z, np.zeros((0, 3, 3)), z, np.zeros((0, 3, 3)), np.zeros(0, int)
+    sat_pos = np.stack([o.sat_pos_e for o in observations])
+    sat_vel = np.stack([o.sat_vel_e for o in observations])
+    rho = np.stack([o.pseudorange_m for o in observations])
+    rate = np.stack([o.pseudorange_rate_mps for o in observations])
+    valid = np.stack([np.asarray(o.valid, bool) for o in observations])
+    n_valid = valid.sum(axis=1)
+    fix = least_squares_fix(sat_pos, rho, valid, initial=initial_e)
+    vfix = velocity_fix(sat_pos, sat_vel, rate, valid, np.where(fix.ok[:, None], fix.position_e, 0.0))
+    ok = fix.ok & vfix.ok & (n_valid >= min_satellites)
+    return ok, fix.position_e, fix.covariance[:, :3, :3], vfix.velocity_e, vfix.covariance[:, :3, :3], n_valid
+
+
+class LooselyCoupledEkf:
+    """15-state closed-loop error-state EKF aided by GNSS position/velocity fixes.
+
+    Parameters
+    ----------
+    use_velocity : bool
+        Also use the Doppler velocity fix (default True).
+    min_satellites : int
+        Fewest valid channels for an update (>= 4).
+    noise_scale, bias_scale : float
+        Factors on the nominal IMU white-noise densities and bias sigmas (Q tuning).
+    measurement_scale : float
+        Factor on the GNSS sigmas (R tuning).
+    covariance_period_s : float or None
+        Longest covariance interval (default: the GNSS period, at most 1 s).
+    divergence_probability : float
+        Tail probability of the NIS test used for the divergence flag.
+    divergence_epochs : int
+        Consecutive failed NIS tests that raise the flag.
+    coning, sculling, position : str or None
+        Strapdown method names; None = the most accurate the data allow.
+
+    Attributes
+    ----------
+    engine : ErrorStateIns (after reset). diverged : bool. last_update : dict.
+    """
+
+    def __init__(self, use_velocity: bool = True, min_satellites: int = 4, noise_scale: float = 1.0,
+                 bias_scale: float = 1.0, measurement_scale: float = 1.0, covariance_period_s: float | None = None,
+                 divergence_probability: float = 1e-6, divergence_epochs: int = 10, coning: str | None = None,
+                 sculling: str | None = None, position: str | None = None) -> None:
+        if int(min_satellites) != min_satellites or min_satellites < 4:
+            raise ConfigError("min_satellites", "an integer >= 4", min_satellites)
+        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
+            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
+        if covariance_period_s is not None and not (covariance_period_s > 0.0 and math.isfinite(covariance_period_s)):
+            raise ConfigError("covariance_period_s", "a positive finite time, s, or None", covariance_period_s)
+        if not 0.0 < divergence_probability < 1.0:
+            raise ConfigError("divergence_probability", "a probability in (0, 1)", divergence_probability)
+        if int(divergence_epochs) != divergence_epochs or divergence_epochs < 1:
+            raise ConfigError("divergence_epochs", "a positive integer", divergence_epochs)
+        self.use_velocity = bool(use_velocity)
+        self.min_satellites = int(min_satellites)
+        self.noise_scale, self.bias_scale = noise_scale, bias_scale
+        self.measurement_scale = float(measurement_scale)
+        self.covariance_period_s = covariance_period_s
+        self.divergence_probability = float(divergence_probability)
+        self.divergence_epochs = int(divergence_epochs)
+        self.methods = dict(coning=coning, sculling=sculling, position=position)
+        self.engine: ErrorStateIns | None = None
+        self.diverged = False
+        self.last_update: dict = {}
+
+    # ------------------------------------------------------------------------ interface
+    def reset(self, context: Context, prior) -> None:
+        """Start an episode from the prior (INS state and 9 x 9 covariance)."""
+        noise = ImuNoise.from_nominal(context.imu, noise_scale=self.noise_scale, bias_scale=self.bias_scale)
+        period = self.covariance_period_s or min(context.gnss_period_s, 1.0)
+        steps = max(1, round(period / context.nav_period_s))
+        self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
+        self.sigma_pos = self.measurement_scale * context.gnss.pseudorange_sigma_m
+        self.sigma_vel = self.measurement_scale * context.gnss.doppler_sigma_mps
+        dof = 6 if self.use_velocity else 3
+        self._nis_limit = nis_threshold(dof, self.divergence_probability)
+        self._failed = 0
+        self.diverged = False
+        self.last_update = {}
+        self._initial_e = context.earth.geodetic_to_ecef(prior.lat, prior.lon, prior.h)
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step (the batch path on a batch of one)."""
+        m = measurement
+        gnss = ((0, m.gnss),) if m.gnss is not None else ()
+        out = self.step_batch(MeasurementBatch(
+            np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
+            m.dtheta_sub[None], m.dv_sub[None], gnss))
+        row = out.solution[0]
+        eng = self.engine
+        extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+        if m.gnss is not None:
+            extra["n_valid"] = self.last_update.get("n_valid", 0)
+        nis = None if math.isnan(out.nis[0]) else float(out.nis[0])
+        return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
+                        covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
+                        extra=extra)
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        """n steps at once: one strapdown call per GNSS interval, vectorised fixes."""
+        eng = self.engine
+        if eng is None:
+            raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
+        n = len(batch)
+        solution = np.empty((n, 9))
+        covariance = np.empty((n, 9, 9))
+        nis = np.full(n, np.nan)
+        nis_dof = np.zeros(n, dtype=int)
+        epochs = list(batch.gnss)
+        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
+                                                                 self._initial_e)
+        body = eng.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)
+        start = 0
+        for e, (index, _) in enumerate(epochs):
+            if not ok[e]:
+                continue  # missing data is a value: this epoch is just INS
+            stop = index + 1
+            if stop > start:
+                rows, cov = eng.advance_body(body, start, stop)
+                solution[start:stop], covariance[start:stop] = rows, cov
+            value, dof = self._update(pos_e[e], cov_pos[e], vel_e[e], cov_vel[e])
+            self.last_update = {"index": index, "n_valid": int(n_valid[e]), "nis": value}
+            nis[index], nis_dof[index] = value, dof
+            solution[index] = eng.current_row()
+            covariance[index] = eng.covariance[NAV, NAV]
+            start = stop
+        if start < n:
+            rows, cov = eng.advance_body(body, start)
+            solution[start:], covariance[start:] = rows, cov
+        self.diverged = self.diverged or eng.diverged
+        return EstimateBatch(solution, covariance, nis, nis_dof)
+
+    # ------------------------------------------------------------------------ update
+    def _update(self, pos_e, cov_pos, vel_e, cov_vel) -> tuple[float, int]:
+        eng = self.engine
+        st = eng.state
+        earth = eng.earth
+        m_en = mat_en(st.lat, st.lon)
+        r_ins = earth.geodetic_to_ecef(st.lat, st.lon, st.h)
+        y_pos = m_en @ (r_ins - pos_e)  # y = r_ins - r_fix = dr + v
+        R_pos = self.sigma_pos**2 * (m_en @ cov_pos @ m_en.T)
+        if self.use_velocity:
+            y_vel = st.velocity_n - m_en @ vel_e  # y = v_ins - v_fix = dv + v
+            R_vel = self.sigma_vel**2 * (m_en @ cov_vel @ m_en.T)
+            H = np.zeros((6, N_STATES))
+            H[:6, :6] = np.eye(6)
+            R = np.zeros((6, 6))
+            R[:3, :3], R[3:, 3:] = R_pos, R_vel
+            y = np.concatenate([y_pos, y_vel])
+        else:
+            H = np.zeros((3, N_STATES))
+            H[:, :3] = np.eye(3)
+            R, y = R_pos, y_pos
+        value, _ = eng.update(H, 0.5 * (R + R.T), y)
+        if not math.isfinite(value) or value > self._nis_limit:
+            self._failed += 1
+        else:
+            self._failed = 0
+        if self._failed >= self.divergence_epochs:
+            self.diverged = True
+        return value, len(y)
+
+    @property
+    def bias_estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """(gyro_bias rad/s, accel_bias m/s^2) in body axes."""
+        return self.engine.gyro_bias.copy(), self.engine.accel_bias.copy()
+
