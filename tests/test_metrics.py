@@ -348,3 +348,27 @@ def test_aggregate_of_scores(world):
     out = aggregate(scores)
     assert out["horizontal_rmse_m"].mean == pytest.approx(2.0)
     assert out["diverged"].mean == 0.0 and out["anees"].n == 0
+
+
+def test_anees_bounds_cover_time_correlated_errors():
+    """Stationary AR(1) errors (rho = 0.95, covariance I): the time-average NEES falls
+    inside its bounds in about 95 % of episodes because the bounds use N / tau; bounds
+    that treated the steps as independent would be about 6 times too narrow."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(21)
+    n, rho, reps = 4000, 0.95, 200
+    cov = np.full((n, 9, 9), np.nan)
+    cov[:, :3, :3] = np.eye(3)
+    inside = naive_inside = 0
+    for _ in range(reps):
+        w = rng.standard_normal((n, 3)) * math.sqrt(1 - rho**2)
+        e = lfilter([1.0], [1.0, -rho], w, axis=0, zi=rho * rng.standard_normal((1, 3)))[0]
+        err = np.full((n, 9), np.nan)
+        err[:, :3] = e
+        s = nees_summary(err, cov)
+        inside += s.lower <= s.anees <= s.upper
+        lo, hi = stats.chi2.ppf([0.025, 0.975], 3 * n) / n
+        naive_inside += lo <= s.anees <= hi
+    assert 0.88 <= inside / reps <= 0.995  # binomial sd 0.015 around 0.95
+    assert naive_inside / reps < 0.6
