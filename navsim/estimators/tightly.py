@@ -1,0 +1,572 @@
+"""Tightly coupled INS/GNSS filters on pseudoranges and pseudorange rates.
+
+:class:`TightlyCoupledEkf` and :class:`TightlyCoupledUkf` are closed-loop error-state
+filters around navsim's strapdown INS (:func:`navsim.strapdown.ins.integrate` on
+bias-compensated increments). They share the 15-state INS error model and engine of
+:mod:`navsim.estimators._inserror` (F, Qc, the per-interval series transition, the
+feedback) and append two receiver-clock states:
+
+    x = [dE dN dU, dvE dvN dvU, psiE psiN psiU, eg (3), ea (3), dcb, dcd]   (17,)
+
+``dcb`` (m) and ``dcd`` (m/s) are the clock bias and drift errors, estimate minus truth,
+with the two-state model (Brown & Hwang 9.3)
+
+    dcb' = dcd + w_f,   dcd' = w_g,   PSDs S_f = c^2 h0/2, S_g = 2 pi^2 c^2 h-2     (TC.1)
+
+Receiver clock: when ``context.gnss.clock_modelled`` is False (seed 003's case, the clock
+compensated), the states stay (option ``clock="auto"``) with a tiny prior (1 mm, 0.1 mm/s)
+and no process noise, so they absorb nothing and cost one 17 x 17 instead of a 15 x 15
+covariance; ``clock="none"`` drops them (15 states).
+
+Observables of every valid satellite i at a GNSS epoch (seed 003 eqs. (2), (3), with the
+same-instant geometry of :mod:`navsim.sensors.gnss`)::
+
+    rho_i    = |r_sat_i - r_e| + cb                                        (TC.2)
+    rhodot_i = u_i . (v_sat_i - v_e) + cd,   u_i = (r_sat_i - r_e) / |.|   (TC.3)
+
+with ``r_e`` the ECEF position of the INS and ``v_e = C_en^T v_n``. Jacobians with
+respect to the estimated position (metres along ENU), velocity and clock::
+
+    d rho_i / d p_n    = -C_en u_i              d rho_i / d cb = 1
+    d rhodot_i / d v_n = -C_en u_i              d rhodot_i / d cd = 1
+    d rhodot_i / d p_n = -C_en (rel_i - u_i (u_i . rel_i)) / rho_i
+                         - u_i . [dC_en^T/dN, dC_en^T/dE, 0] v_n               (TC.4)
+
+(``rel_i = v_sat_i - v_e``; the last term is the turn of the ENU axes with position,
+~v/R). The filter's innovation is ``y = z - h(INS)`` and, the error being estimate minus
+truth, its measurement matrix is ``H = -dh/dx``.
+
+EKF
+    Joseph-form update (:func:`navsim.estimators._inserror.joseph_update`), symmetrised,
+    eigenvalue-floored by the engine's guard.
+UKF (error state, own sigma points)
+    The error dynamics are linear, and the unscented transform of a linear map is exact,
+    so the time update is the same Phi P Phi^T + Qd as the EKF's (computing it through
+    35 sigma points would only cost time). The measurement update pushes the scaled
+    sigma points (alpha, beta, kappa; defaults 1, 2, 0: spread sqrt(n) sigma, no
+    negative weight) of the error state through the exact nonlinear (TC.2)-(TC.3)
+    evaluated at ``INS minus error`` (latitude, longitude, height, ENU axes and all),
+    then ``K = Pxz Pzz^-1``, ``P = P - K Pzz K^T`` (symmetrised, guarded; the Joseph
+    form needs an H, which the UKF does not have). The square root is a Cholesky factor
+    of the states with non-zero variance (the bias states of an IMU without bias are
+    exactly zero); when it fails, jitter (1e-12, 1e-9, 1e-6 of the largest variance) is
+    added, and as a last resort an eigen-decomposition with clipped eigenvalues is used.
+    The count is in ``Estimate.extra["cholesky_fallbacks"]``.
+
+Covariance between epochs: the engine propagates P once per covariance interval
+(``covariance_period_s``, default 1 s, restarted at each update) by the series transition
+and evaluates it at every step from the interval start (so the reported covariance is
+never stale, and ``step`` and ``step_batch`` agree). The INS runs over all the steps
+between epochs in one :func:`~navsim.strapdown.ins.integrate` call in ``step_batch``.
+
+Divergence: ``extra["diverged"]`` is set when the engine had to repair P (non-finite,
+negative variance), an update failed, or NIS/dof exceeded ``nis_divergence`` at
+``divergence_epochs`` consecutive epochs. Nothing raises.
+
+References
+----------
+.. [1] Sokolov S.V., Vdovichenko S.S. (2012), seed 003, eqs. (2), (3), (6).
+.. [2] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+       Systems, 2nd ed., 2013, sections 14.3.3 (tightly coupled measurement model,
+       eqs. 14.126-14.129) and 9.4.2 (clock states).
+.. [3] Brown R.G., Hwang P.Y.C., Introduction to Random Signals and Applied Kalman
+       Filtering, 4th ed., 2012, section 9.3 (two-state clock model).
+.. [4] Julier S.J., Uhlmann J.K. (2004), Unscented filtering and nonlinear estimation,
+       Proc. IEEE 92(3); Wan E.A., van der Merwe R. (2000), The unscented Kalman filter
+       for nonlinear estimation (scaled sigma points, weights).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..earth import mat_en
+from ..errors import ConfigError
+from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, _Series, correct_state, joseph_update
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+
+__all__ = [
+    "TightlyCoupledEkf",
+    "TightlyCoupledUkf",
+    "TightlyCoupledOptions",
+    "predict_observables",
+    "observation_jacobian",
+    "sigma_points",
+    "unscented_update",
+    "unscented_predict",
+]
+
+CB, CD = 15, 16
+TINY_CLOCK_BIAS_M = 1e-3
+TINY_CLOCK_DRIFT_MPS = 1e-4
+
+
+# ============================================================================ observables
+def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_pos_e, sat_vel_e, earth):
+    """Pseudoranges (TC.2) and pseudorange rates (TC.3) of m satellites.
+
+    Parameters
+    ----------
+    lat, lon, h : float or (N,) arrays
+        Receiver position, rad, rad, m.
+    velocity_n : (3,) or (N, 3)
+        ENU velocity, m/s.
+    clock_bias, clock_drift : float or (N,)
+        m and m/s.
+    sat_pos_e, sat_vel_e : (m, 3)
+        Satellite ECEF positions (m) and ECEF-frame velocities (m/s).
+    earth : EarthModel
+
+    Returns
+    -------
+    rho, rate : (..., m)
+        Leading shape that of ``lat``.
+    """
+    r_e = earth.geodetic_to_ecef(lat, lon, h)
+    c_en = mat_en(lat, lon)
+    v_e = np.einsum("...ji,...j->...i", c_en, np.asarray(velocity_n, dtype=float))  # C_en^T v_n
+    los = sat_pos_e - r_e[..., None, :]
+    rho = np.sqrt(np.einsum("...mi,...mi->...m", los, los))
+    rel = sat_vel_e - v_e[..., None, :]
+    rate = np.einsum("...mi,...mi->...m", los, rel) / rho
+    return rho + np.asarray(clock_bias)[..., None], rate + np.asarray(clock_drift)[..., None]
+
+
+def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e, sat_vel_e, earth,
+                         n_states: int = 17) -> np.ndarray:
+    """d[rho; rate]/dx (2m, n_states) at the estimate: (TC.4), x = estimate error.
+
+    Columns: position (metres along E, N, U), velocity, then zeros for attitude and
+    biases, then clock bias and drift (when ``n_states == 17``).
+    """
+    r_n, r_e_rad = (float(x) for x in earth.radii(lat))
+    r_e = earth.geodetic_to_ecef(lat, lon, h)
+    c_en = mat_en(lat, lon)
+    v_n = np.asarray(velocity_n, dtype=float)
+    v_e = c_en.T @ v_n
+    los = sat_pos_e - r_e
+    rho = np.sqrt(np.einsum("mi,mi->m", los, los))
+    u = los / rho[:, None]
+    rel = sat_vel_e - v_e
+    u_n = u @ c_en.T  # rows C_en u_i
+    m = len(rho)
+    J = np.zeros((2 * m, n_states))
+    J[:m, 0:3] = -u_n
+    J[m:, 3:6] = -u_n
+    g_e = -(rel - u * np.einsum("mi,mi->m", u, rel)[:, None]) / rho[:, None]
+    J[m:, 0:3] = g_e @ c_en.T
+    # turn of the ENU axes: v_e = v_E E + v_N N + v_U U with rows E, N, U of C_en
+    sl, cl = math.sin(lat), math.cos(lat)
+    so, co = math.sin(lon), math.cos(lon)
+    east, north, up = c_en
+    dv_dlat = -v_n[1] * up + v_n[2] * north
+    dv_dlon = v_n[0] * np.array([-co, -so, 0.0]) + v_n[1] * np.array([sl * so, -sl * co, 0.0]) \
+        + v_n[2] * np.array([-cl * so, cl * co, 0.0])
+    J[m:, 1] += -(u @ dv_dlat) / (r_n + h)
+    J[m:, 0] += -(u @ dv_dlon) / ((r_e_rad + h) * cl)
+    if n_states > CD:
+        J[:m, CB] = 1.0
+        J[m:, CD] = 1.0
+    return J
+
+
+# ============================================================================ sigma points
+def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    """Scaled symmetric sigma points (2n+1, n) with weights, and a fallback count.
+
+    The square root is the Cholesky factor of ``(n + lambda) P`` restricted to the states
+    with non-zero variance; on failure jitter is added (1e-12, 1e-9, 1e-6 of the largest
+    variance) and, last, an eigen-decomposition with clipped eigenvalues is used.
+
+    Returns
+    -------
+    X : (2n+1, n). Wm, Wc : (2n+1,). fallbacks : int (0 when the plain Cholesky worked).
+    """
+    n = len(mean)
+    lam = alpha * alpha * (n + kappa) - n
+    c = n + lam
+    d = np.diag(P)
+    active = np.flatnonzero(d > 0.0)
+    L = np.zeros((n, n))
+    fallbacks = 0
+    if active.size:
+        A = c * P[np.ix_(active, active)]
+        A = 0.5 * (A + A.T)
+        scale = float(np.max(np.diag(A)))
+        factor = None
+        for jitter in (0.0, 1e-12, 1e-9, 1e-6):
+            try:
+                factor = np.linalg.cholesky(A + jitter * scale * np.eye(active.size) if jitter else A)
+                break
+            except np.linalg.LinAlgError:
+                fallbacks += 1
+        if factor is None:  # eigen-decomposition, negative eigenvalues clipped
+            w, v = np.linalg.eigh(A)
+            factor = v * np.sqrt(np.clip(w, 0.0, None))
+        L[np.ix_(active, active)] = factor
+    X = np.empty((2 * n + 1, n))
+    X[0] = mean
+    X[1:n + 1] = mean + L.T
+    X[n + 1:] = mean - L.T
+    Wm = np.full(2 * n + 1, 0.5 / c)
+    Wc = Wm.copy()
+    Wm[0] = lam / c
+    Wc[0] = lam / c + (1.0 - alpha * alpha + beta)
+    return X, Wm, Wc, fallbacks
+
+
+def unscented_update(mean, P, hx, z, R, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    """Unscented measurement update.
+
+    Parameters
+    ----------
+    mean : (n,). P : (n, n). hx : callable (N, n) -> (N, m) measurement model.
+    z : (m,) measurement. R : (m,) diagonal or (m, m) noise covariance.
+
+    Returns
+    -------
+    mean_new (n,), P_new (n, n) symmetrised, nis float, fallbacks int.
+    """
+    X, Wm, Wc, fallbacks = sigma_points(mean, P, alpha, beta, kappa)
+    Z = hx(X)
+    z_hat = Wm @ Z
+    dZ = Z - z_hat
+    dX = X - mean
+    R = np.asarray(R, dtype=float)
+    Pzz = (dZ.T * Wc) @ dZ + (np.diag(R) if R.ndim == 1 else R)
+    Pxz = (dX.T * Wc) @ dZ
+    cho = np.linalg.cholesky(0.5 * (Pzz + Pzz.T))
+    K = np.linalg.solve(cho.T, np.linalg.solve(cho, Pxz.T)).T  # K = Pxz Pzz^-1
+    y = z - z_hat
+    w = np.linalg.solve(cho, y)
+    P_new = P - K @ Pzz @ K.T
+    return mean + K @ y, 0.5 * (P_new + P_new.T), float(w @ w), fallbacks
+
+
+def unscented_predict(mean, P, fx, Q, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    """Unscented time update: sigma points through ``fx`` ((N, n) -> (N, n)) plus Q.
+
+    Returns mean (n,), P (n, n), fallbacks. (The tightly coupled UKF does not need it,
+    its error dynamics being linear; it is here for completeness and the linear check.)
+    """
+    X, Wm, Wc, fallbacks = sigma_points(mean, P, alpha, beta, kappa)
+    Y = fx(X)
+    m = Wm @ Y
+    dY = Y - m
+    P_new = (dY.T * Wc) @ dY + Q
+    return m, 0.5 * (P_new + P_new.T), fallbacks
+
+
+# ============================================================================ the engine
+class _SeriesN(_Series):
+    """The engine's series transition for any state dimension (the parent's methods are
+    written for 15 states; these are the same formulas with n = F.shape[0])."""
+
+    def phi(self, tau: np.ndarray, rows=slice(None)) -> np.ndarray:
+        tau = tau[:, None, None]
+        eye = np.eye(self.F.shape[0])[rows]
+        return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * self.F3s[rows]))
+
+    def nav_polynomial(self, P0: np.ndarray) -> np.ndarray:
+        M = (np.eye(self.F.shape[0])[NAV], self.F[NAV], self.F2h[NAV], self.F3s[NAV])  # Phi9 = sum tau^a M_a
+        MP = [m @ P0 for m in M]
+        coef = np.zeros((7, 9, 9))
+        for a in range(4):
+            for b in range(4):
+                coef[a + b] += MP[a] @ M[b].T
+        for p, q in enumerate((self.q1, self.q2, self.q3, self.q4, self.q5), start=1):
+            coef[p] += q[NAV, NAV]
+        return coef.reshape(7, 81)
+
+
+class _ClockEngine(ErrorStateIns):
+    """:class:`ErrorStateIns` with two receiver-clock states appended (17 states).
+
+    The parent builds the 15-state F of an interval; this class appends the clock block
+    (TC.1) to it and to Qc, carries the clock mean between updates and applies the
+    feedback of all 17 states.
+    """
+
+    def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool, **kw):
+        self.n_states = 17 if with_clock else 15
+        self.clock = np.zeros(2)
+        self._clock_sigma = clock_sigma
+        self._clock_psd = clock_psd
+        super().__init__(context, prior, noise, **kw)
+
+    def _start_interval(self, P: np.ndarray) -> None:
+        n = self.n_states
+        if P.shape[0] < n:  # the parent's constructor passes the 15-state prior
+            full = np.zeros((n, n))
+            full[:15, :15] = P
+            full[CB, CB], full[CD, CD] = self._clock_sigma[0] ** 2, self._clock_sigma[1] ** 2
+            P = full
+        super()._start_interval(P)
+        if n == 15:
+            return
+        F = np.zeros((n, n))
+        F[:15, :15] = self._series.F
+        F[CB, CD] = 1.0  # (TC.1)
+        qc = np.zeros((n, n))
+        qc[:15, :15] = self.Qc
+        qc[CB, CB], qc[CD, CD] = self._clock_psd  # (TC.1)
+        self._series = _SeriesN.build(F, qc)
+
+    def advance_body(self, body, start: int = 0, stop: int | None = None):
+        rows, cov = super().advance_body(body, start, stop)
+        if self.n_states == 17:
+            self.clock[0] += self.clock[1] * len(rows) * self.dt  # (TC.1) mean
+        return rows, cov
+
+    def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
+        """Closed-loop feedback of an estimated error dx and restart of the interval."""
+        if not self.estimate_biases:
+            dx[BG] = 0.0
+            dx[BA] = 0.0
+        self.state = correct_state(self.state, dx[NAV], self.earth)
+        self.gyro_bias = self.gyro_bias + dx[BG]
+        self.accel_bias = self.accel_bias + dx[BA]
+        if self.n_states == 17:
+            self.clock = self.clock - dx[CB:CD + 1]  # estimate minus truth: remove it
+        self._start_interval(self._guard(P_new))
+
+
+# ============================================================================ options
+@dataclass(frozen=True, slots=True)
+class TightlyCoupledOptions:
+    """Options of the tightly coupled filters (see :class:`TightlyCoupledEkf`)."""
+
+    clock: str = "auto"
+    use_doppler: bool = True
+    covariance_period_s: float = 1.0
+    noise_scale: float = 1.0
+    bias_scale: float = 1.0
+    estimate_biases: bool = True
+    coning: str | None = None
+    sculling: str | None = None
+    position: str | None = None
+    nis_divergence: float = 50.0
+    divergence_epochs: int = 10
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+
+    def __post_init__(self):
+        if self.clock not in ("auto", "none"):
+            raise ConfigError("tightly.clock", "'auto' or 'none'", self.clock)
+        for name in ("covariance_period_s", "noise_scale", "bias_scale", "nis_divergence", "alpha"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
+                raise ConfigError(f"tightly.{name}", "a positive finite number", value)
+        if not (isinstance(self.divergence_epochs, int) and self.divergence_epochs >= 1):
+            raise ConfigError("tightly.divergence_epochs", "a positive integer", self.divergence_epochs)
+
+
+# ============================================================================ filters
+class _TightlyCoupled:
+    """Shared machinery: reset, the INS between epochs, outputs; subclasses update."""
+
+    kind = "ekf"
+
+    def __init__(self, **options):
+        self.options = TightlyCoupledOptions(**options)
+        self.engine: _ClockEngine | None = None
+
+    def reset(self, context: Context, prior) -> None:
+        """Start from the prior (9 x 9 navigation covariance, nominal bias sigmas, clock)."""
+        opt = self.options
+        self.context = context
+        noise = ImuNoise.from_nominal(context.imu, noise_scale=opt.noise_scale, bias_scale=opt.bias_scale)
+        gnss = context.gnss
+        if gnss.clock_modelled:
+            clock_sigma = (gnss.clock_bias_sigma_m, gnss.clock_drift_sigma_mps)
+            clock_psd = (gnss.clock_phase_psd, gnss.clock_freq_psd)
+        else:  # compensated clock (seed 003): tiny prior, no process noise
+            clock_sigma = (TINY_CLOCK_BIAS_M, TINY_CLOCK_DRIFT_MPS)
+            clock_psd = (0.0, 0.0)
+        steps = max(1, round(opt.covariance_period_s / context.nav_period_s))
+        self.engine = _ClockEngine(context, prior, noise, clock_sigma=clock_sigma, clock_psd=clock_psd,
+                                   with_clock=opt.clock == "auto", interval_steps=steps,
+                                   coning=opt.coning, sculling=opt.sculling, position=opt.position,
+                                   estimate_biases=opt.estimate_biases)
+        self.earth = context.earth
+        self.sigma_pr = float(gnss.pseudorange_sigma_m)
+        self.sigma_rate = float(gnss.doppler_sigma_mps)
+        self.diverged = False
+        self._bad = 0
+        self.cholesky_fallbacks = 0
+        self.n_used = 0
+        self.last_extra: dict = {}
+
+    # ------------------------------------------------------------------ update
+    def _measurements(self, obs):
+        use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m) & np.isfinite(obs.pseudorange_rate_mps)
+        sat_pos, sat_vel = obs.sat_pos_e[use], obs.sat_vel_e[use]
+        m = int(use.sum())
+        z = obs.pseudorange_m[use]
+        R = np.full(m, self.sigma_pr**2)
+        if self.options.use_doppler:
+            z = np.concatenate([z, obs.pseudorange_rate_mps[use]])
+            R = np.concatenate([R, np.full(m, self.sigma_rate**2)])
+        return m, sat_pos, sat_vel, z, R
+
+    def _update(self, obs) -> tuple[float | None, int]:
+        m, sat_pos, sat_vel, z, R = self._measurements(obs)
+        self.n_used = m
+        if m == 0:
+            return None, 0
+        eng = self.engine
+        P = eng.covariance
+        try:
+            dx, P_new, nis = self._kalman(P, sat_pos, sat_vel, z, R, m)
+        except np.linalg.LinAlgError:
+            self.diverged = True
+            return None, 0
+        if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new))):
+            self.diverged = True
+            return None, 0
+        eng.apply(dx, P_new)
+        dof = len(z)
+        self._bad = self._bad + 1 if nis / dof > self.options.nis_divergence else 0
+        if self._bad >= self.options.divergence_epochs:
+            self.diverged = True
+        return nis, dof
+
+    def _predicted(self, sat_pos, sat_vel):
+        st, eng = self.engine.state, self.engine
+        cb, cd = (eng.clock if eng.n_states == 17 else (0.0, 0.0))
+        return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth)
+
+    def _kalman(self, P, sat_pos, sat_vel, z, R, m):  # pragma: no cover - subclasses
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ stepping
+    def _extra(self) -> dict:
+        eng = self.engine
+        extra = {"gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy(), "n_used": self.n_used,
+                 "diverged": bool(self.diverged or eng.diverged), "cholesky_fallbacks": self.cholesky_fallbacks}
+        if eng.n_states == 17:
+            extra["clock_bias_m"], extra["clock_drift_mps"] = float(eng.clock[0]), float(eng.clock[1])
+        return extra
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step (an update when the step carries a GNSS epoch)."""
+        m = measurement
+        out = self.step_batch(MeasurementBatch(
+            np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
+            np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else ()))
+        row = out.solution[0]
+        nis = None if np.isnan(out.nis[0]) else float(out.nis[0])
+        return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
+                        covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
+                        extra=self.last_extra)
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        """n steps: one INS integration per stretch between epochs, updates at epochs."""
+        if self.engine is None:
+            raise ConfigError(type(self).__name__, "reset(context, prior) before stepping", "no reset")
+        n = len(batch)
+        sol = np.empty((n, 9))
+        cov = np.empty((n, 9, 9))
+        nis = np.full(n, np.nan)
+        dof = np.zeros(n, dtype=int)
+        cuts = [j for j, _ in batch.gnss]
+        obs_at = dict(batch.gnss)
+        start = 0
+        body = self.engine.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)  # once per batch
+        for end in cuts + ([n - 1] if not cuts or cuts[-1] != n - 1 else []):
+            if end < start:
+                continue
+            rows, c = self.engine.advance_body(body, start, end + 1)
+            sol[start:end + 1], cov[start:end + 1] = rows, c
+            obs = obs_at.get(end)
+            if obs is not None:
+                value, d = self._update(obs)
+                if value is not None:
+                    nis[end], dof[end] = value, d
+                    sol[end] = self.engine.current_row()
+                    cov[end] = self.engine.covariance[:9, :9]
+            start = end + 1
+        self.last_extra = self._extra()
+        return EstimateBatch(sol, cov, nis, dof)
+
+
+class TightlyCoupledEkf(_TightlyCoupled):
+    """Error-state EKF on pseudoranges and pseudorange rates (17 or 15 states).
+
+    Parameters (keywords, all optional)
+    -----------------------------------
+    clock : {"auto", "none"}
+        "auto": clock bias/drift states (tiny prior when the context says the clock is
+        compensated); "none": 15 states.
+    use_doppler : bool
+        Use the pseudorange rates too (default True).
+    covariance_period_s : float
+        Covariance interval of the engine, s (default 1).
+    noise_scale, bias_scale : float
+        Factors on the nominal IMU noise densities and bias sigmas.
+    estimate_biases : bool
+        Feed back the bias estimates (default True).
+    coning, sculling, position : str or None
+        Strapdown methods (None: the most accurate the data allow).
+    nis_divergence, divergence_epochs : float, int
+        Divergence flag settings.
+
+    See the module docstring for the model and equations.
+    """
+
+    kind = "ekf"
+
+    def _kalman(self, P, sat_pos, sat_vel, z, R, m):
+        st = self.engine.state
+        rho, rate = self._predicted(sat_pos, sat_vel)
+        J = observation_jacobian(st.lat, st.lon, st.h, st.velocity_n, sat_pos, sat_vel, self.earth,
+                                 self.engine.n_states)
+        if self.options.use_doppler:
+            h = np.concatenate([rho, rate])
+        else:
+            h, J = rho, J[:m]
+        # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
+        return joseph_update(P, -J, np.diag(R), z - h)
+
+
+class TightlyCoupledUkf(_TightlyCoupled):
+    """Error-state UKF (own sigma points) on pseudoranges and pseudorange rates.
+
+    Same parameters as :class:`TightlyCoupledEkf`, plus ``alpha``, ``beta``, ``kappa``
+    of the scaled unscented transform (defaults 1, 2, 0). The time update is the EKF's
+    (exact for the linear error dynamics); the measurement update is unscented through
+    the nonlinear observables at ``INS minus error``; Cholesky failures fall back to
+    jitter and then an eigen-decomposition (counted in ``extra["cholesky_fallbacks"]``).
+    """
+
+    kind = "ukf"
+
+    def _kalman(self, P, sat_pos, sat_vel, z, R, m):
+        st, eng = self.engine.state, self.engine
+        earth = self.earth
+        r_n, r_e = (float(x) for x in earth.radii(st.lat))
+        clock = eng.clock if eng.n_states == 17 else np.zeros(2)
+        doppler = self.options.use_doppler
+        cos_lat = math.cos(st.lat)
+
+        def hx(X):
+            # the truth hypothesis of each sigma point: INS minus the error
+            lat = st.lat - X[:, 1] / (r_n + st.h)
+            lon = st.lon - X[:, 0] / ((r_e + st.h) * cos_lat)
+            h = st.h - X[:, 2]
+            v = st.velocity_n[None, :] - X[:, 3:6]
+            if eng.n_states == 17:
+                cb, cd = clock[0] - X[:, CB], clock[1] - X[:, CD]
+            else:
+                cb = cd = np.zeros(len(X))
+            rho, rate = predict_observables(lat, lon, h, v, cb, cd, sat_pos, sat_vel, earth)
+            return np.concatenate([rho, rate], axis=1) if doppler else rho
+
+        opt = self.options
+        dx, P_new, nis, fallbacks = unscented_update(np.zeros(len(P)), P, hx, z, R, opt.alpha, opt.beta, opt.kappa)
+        self.cholesky_fallbacks += fallbacks
+        return dx, P_new, nis
