@@ -212,7 +212,7 @@ def test_a_failing_estimator_is_recorded_and_the_bench_goes_on():
 
 def test_bench_cli_writes_tables_and_plots(tmp_path, capsys):
     out_dir = tmp_path / "bench"
-    assert _cli(["bench", "paper-2012", "--estimators", "echo,frozen,flaky", "--seeds", "0:3", "-q",
+    assert _cli(["bench", "paper-2012", "--estimators", "echo,frozen,flaky", "--seeds", "0:2", "-q",
                  "--out", str(out_dir), "--option", "echo.gain=10", *sum((["--set", s] for s in SETS), [])]) == 0
     text = capsys.readouterr().out
     assert "| horizontal_rmse_m | m |" in text and "flaky seed 1: RuntimeError" in text
@@ -220,9 +220,9 @@ def test_bench_cli_writes_tables_and_plots(tmp_path, capsys):
                  "bench_nees.png"):
         assert (out_dir / name).stat().st_size > 100, name
     data = json.loads((out_dir / "bench.json").read_text())
-    assert data["seeds"] == [0, 1, 2] and data["failures"][0]["seed"] == 1
+    assert data["seeds"] == [0, 1] and data["failures"][0]["seed"] == 1
     rows = list(csv.DictReader((out_dir / "runs.csv").open()))
-    assert len(rows) == 9 and sum(bool(r["error"]) for r in rows) == 1
+    assert len(rows) == 6 and sum(bool(r["error"]) for r in rows) == 1
     echo_rmse = [float(r["horizontal_rmse_m"]) for r in rows if r["estimator"] == "echo"]
     summary = list(csv.DictReader((out_dir / "bench.csv").open()))
     echo = next(r for r in summary if r["estimator"] == "echo")
