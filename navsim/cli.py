@@ -5,6 +5,8 @@ Sub-commands
 ``navsim scenarios``                         list the bundled scenarios
 ``navsim show SCENARIO``                     print the resolved scenario as TOML
 ``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
+``navsim run SCENARIO --estimator NAME``     score one estimator on one episode
+``navsim bench SCENARIO --estimators A,B``   compare estimators across seeds
 ``navsim paper 000|001 [--json]``            rerun a seed paper's experiments
 
 Exit status: 0 on success, 2 on bad input (the message names the field), 1 otherwise.
@@ -157,6 +159,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.add_argument("--plot", default=None, metavar="PNG", help="also write a plot of the episode")
     p.set_defaults(func=_cmd_simulate)
+
+    from .report import add_bench_parser, add_run_parser
+
+    add_run_parser(sub)
+    add_bench_parser(sub)
 
     p = sub.add_parser("paper", help="rerun a seed paper's experiments beside its printed figures")
     p.add_argument("seed_id", choices=("000", "001", "003"))
