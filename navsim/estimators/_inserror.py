@@ -58,7 +58,7 @@ engine builds F once per *interval* (at most ``interval_steps`` navigation steps
 early by a measurement update) from the state at the interval start and the mean
 specific force ``f_n`` of the previous interval, and uses over the interval
 
-    Phi(tau) = I + F tau + F^2 tau^2/2 + F^3 tau^3/6                    (3rd-order series)
+    Phi(tau) = I + F tau + F^2 tau^2/2 + F^3 tau^3/6 + F^4 tau^4/24     (4th-order series)
     Qd(tau)  = int_0^tau Phi(s) Qc Phi(s)^T ds   with Phi(s) to 2nd order:
              = Qc tau + A tau^2/2 + B tau^3/3 + C3 tau^4/4 + D tau^5/5,
       A = F Qc + Qc F^T,  B = F Qc F^T + (F^2 Qc + Qc F^2T)/2,
@@ -67,8 +67,9 @@ specific force ``f_n`` of the previous interval, and uses over the interval
 
 The reported covariance at every step inside the interval is this P(tau) (so NEES is
 meaningful between GNSS epochs too), and the covariance at the interval end starts the
-next one. The chain position <- velocity <- attitude <- gyro bias is cubic in tau and is
-carried exactly by the third-order Phi. Everything used at step j of an interval is known
+next one. The chain position <- velocity <- attitude <- gyro bias is cubic in tau; the
+fourth-order term carries its coupling with the bias correlation time and the Earth and
+transport rates (tests: Phi within 1e-5 relative of expm(F tau) over 1 s). Everything used at step j of an interval is known
 at step j, so stepping one step at a time and advancing many steps at once give the same
 numbers (to rounding): the contract of ``step_batch``.
 
@@ -283,7 +284,7 @@ def error_dynamics(lat: float, h: float, velocity_n, mat_nb, specific_force_n, e
     F[5, 1] += dgu_dlat / rnh
     F[5, 2] += dgu_dh
     # -(2 w_ie + w_en) x dv
-    F[VEL, VEL] = -_skew3(cor)
+    F[VEL, VEL] -= _skew3(cor)
     # -f_n x psi
     F[VEL, ATT] = -_skew3((fe, fn, fu))
     F[VEL, BA] = C
@@ -331,6 +332,7 @@ class _Series:
     F: np.ndarray
     F2h: np.ndarray  # F^2 / 2
     F3s: np.ndarray  # F^3 / 6
+    F4s: np.ndarray  # F^4 / 24
     q1: np.ndarray  # Qc
     q2: np.ndarray  # A / 2
     q3: np.ndarray  # B / 3
@@ -347,27 +349,27 @@ class _Series:
         C3 = F2Q @ F.T
         C3 = 0.5 * (C3 + C3.T)
         D = 0.25 * F2Q @ F2.T
-        return cls(F, 0.5 * F2, F2 @ F / 6.0, Qc, 0.5 * A, B / 3.0, 0.25 * C3, 0.2 * D)
+        return cls(F, 0.5 * F2, F2 @ F / 6.0, F2 @ F2 / 24.0, Qc, 0.5 * A, B / 3.0, 0.25 * C3, 0.2 * D)
 
     def phi(self, tau: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Phi(tau) rows, shape (k, len(rows), 15)."""
         tau = tau[:, None, None]
         eye = np.eye(N_STATES)[rows]
-        return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * self.F3s[rows]))
+        return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * (self.F3s[rows] + tau * self.F4s[rows])))
 
     def nav_polynomial(self, P0: np.ndarray) -> np.ndarray:
-        """Coefficients (7, 81) of the navigation block of P(tau) = Phi P0 Phi^T + Qd as a
-        polynomial in tau: ``P9(tau) = (tau^p)_p @ coefficients`` (p = 0..6)."""
-        M = (np.eye(N_STATES)[NAV], self.F[NAV], self.F2h[NAV], self.F3s[NAV])  # Phi9 = sum tau^a M_a
+        """Coefficients (9, 81) of the navigation block of P(tau) = Phi P0 Phi^T + Qd as a
+        polynomial in tau: ``P9(tau) = (tau^p)_p @ coefficients`` (p = 0..8)."""
+        M = (np.eye(N_STATES)[NAV], self.F[NAV], self.F2h[NAV], self.F3s[NAV], self.F4s[NAV])  # Phi9 = sum tau^a M_a
         MP = [m @ P0 for m in M]
-        coef = np.zeros((7, 9, 9))
-        for a in range(4):
-            for b in range(4):
+        coef = np.zeros((9, 9, 9))
+        for a in range(5):
+            for b in range(5):
                 coef[a + b] += MP[a] @ M[b].T
         b9 = (NAV, NAV)
         for p, q in enumerate((self.q1, self.q2, self.q3, self.q4, self.q5), start=1):
             coef[p] += q[b9]
-        return coef.reshape(7, 81)
+        return coef.reshape(9, 81)
 
     def qd(self, tau: np.ndarray, block=slice(None)) -> np.ndarray:
         """Qd(tau) block, shape (k, n, n)."""
@@ -733,7 +735,7 @@ class ErrorStateIns:
             tau = (self._j + 1 + np.arange(take)) * self.dt
             if self._poly is None:
                 self._poly = self._series.nav_polynomial(self._P0)
-            powers = tau[:, None] ** np.arange(7)  # P9(tau) = sum_p tau^p coef_p
+            powers = tau[:, None] ** np.arange(9)  # P9(tau) = sum_p tau^p coef_p
             cov[i:i + take] = (powers @ self._poly).reshape(take, 9, 9)
             self._f_sum = self._f_sum + f_dv[i:i + take].sum(axis=0)
             self._f_count += take
