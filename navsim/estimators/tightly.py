@@ -85,7 +85,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, _Series, correct_state, joseph_update
+from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, correct_state, joseph_update
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = [
@@ -261,59 +261,63 @@ def unscented_predict(mean, P, fx, Q, alpha: float = 1.0, beta: float = 2.0, kap
 
 
 # ============================================================================ the engine
-class _SeriesN(_Series):
-    """The engine's series transition for any state dimension (the parent's methods are
-    written for 15 states; these are the same formulas with n = F.shape[0])."""
-
-    def phi(self, tau: np.ndarray, rows=slice(None)) -> np.ndarray:
-        tau = tau[:, None, None]
-        eye = np.eye(self.F.shape[0])[rows]
-        return eye + tau * (self.F[rows] + tau * (self.F2h[rows] + tau * self.F3s[rows]))
-
-    def nav_polynomial(self, P0: np.ndarray) -> np.ndarray:
-        M = (np.eye(self.F.shape[0])[NAV], self.F[NAV], self.F2h[NAV], self.F3s[NAV])  # Phi9 = sum tau^a M_a
-        MP = [m @ P0 for m in M]
-        coef = np.zeros((7, 9, 9))
-        for a in range(4):
-            for b in range(4):
-                coef[a + b] += MP[a] @ M[b].T
-        for p, q in enumerate((self.q1, self.q2, self.q3, self.q4, self.q5), start=1):
-            coef[p] += q[NAV, NAV]
-        return coef.reshape(7, 81)
+def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
+    """Phi and Qd of the two-state clock (TC.1) over tau (Brown & Hwang 9.3)."""
+    s_f, s_g = psd
+    phi = np.array([[1.0, tau], [0.0, 1.0]])
+    q = np.array([[s_f * tau + s_g * tau**3 / 3.0, s_g * tau**2 / 2.0], [s_g * tau**2 / 2.0, s_g * tau]])
+    return phi, q
 
 
 class _ClockEngine(ErrorStateIns):
-    """:class:`ErrorStateIns` with two receiver-clock states appended (17 states).
+    """:class:`ErrorStateIns` plus two receiver-clock states (17 states in all).
 
-    The parent builds the 15-state F of an interval; this class appends the clock block
-    (TC.1) to it and to Qc, carries the clock mean between updates and applies the
-    feedback of all 17 states.
+    The clock dynamics (TC.1) do not involve the INS errors and vice versa, so F and Qc
+    are block diagonal and over an interval ``Phi = diag(Phi_15, Phi_c)``: the engine
+    keeps propagating its 15 x 15 block untouched, and this class carries the clock
+    block ``P_cc`` and the cross-covariance ``P_nc`` from the interval start,
+    ``P_nc(tau) = Phi_15(tau) P_nc Phi_c(tau)^T``, ``P_cc(tau) = Phi_c P_cc Phi_c^T +
+    Qd_c``, with the engine's own ``Phi_15`` (so nothing of its series is duplicated).
+    The full 17 x 17 matrix is assembled at updates only.
     """
 
     def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool, **kw):
         self.n_states = 17 if with_clock else 15
         self.clock = np.zeros(2)
-        self._clock_sigma = clock_sigma
         self._clock_psd = clock_psd
+        self.P_nc = np.zeros((15, 2))
+        self.P_cc = np.diag([clock_sigma[0] ** 2, clock_sigma[1] ** 2])
+        self._fresh = True  # the next interval start carries no clock propagation
         super().__init__(context, prior, noise, **kw)
 
+    def _clock_blocks(self) -> tuple[np.ndarray, np.ndarray]:
+        """P_nc and P_cc at the current step of the interval."""
+        tau = self._j * self.dt
+        if tau == 0.0:
+            return self.P_nc, self.P_cc
+        phi = self._series.phi(np.array([tau]))[0]
+        phi_c, q_c = _clock_transition(tau, self._clock_psd)
+        return phi @ self.P_nc @ phi_c.T, phi_c @ self.P_cc @ phi_c.T + q_c
+
     def _start_interval(self, P: np.ndarray) -> None:
-        n = self.n_states
-        if P.shape[0] < n:  # the parent's constructor passes the 15-state prior
-            full = np.zeros((n, n))
-            full[:15, :15] = P
-            full[CB, CB], full[CD, CD] = self._clock_sigma[0] ** 2, self._clock_sigma[1] ** 2
-            P = full
+        if self.n_states == 17 and not self._fresh:
+            # the engine restarts an interval on its own: carry the clock blocks to here
+            self.P_nc, self.P_cc = self._clock_blocks()
+        self._fresh = False
         super()._start_interval(P)
-        if n == 15:
-            return
-        F = np.zeros((n, n))
-        F[:15, :15] = self._series.F
-        F[CB, CD] = 1.0  # (TC.1)
-        qc = np.zeros((n, n))
-        qc[:15, :15] = self.Qc
-        qc[CB, CB], qc[CD, CD] = self._clock_psd  # (TC.1)
-        self._series = _SeriesN.build(F, qc)
+
+    def full_covariance(self) -> np.ndarray:
+        """The 17 x 17 (or 15 x 15) covariance at the current step."""
+        P = self.covariance
+        if self.n_states == 15:
+            return P
+        P_nc, P_cc = self._clock_blocks()
+        full = np.empty((17, 17))
+        full[:15, :15] = P
+        full[:15, CB:] = P_nc
+        full[CB:, :15] = P_nc.T
+        full[CB:, CB:] = P_cc
+        return full
 
     def advance_body(self, body, start: int = 0, stop: int | None = None):
         rows, cov = super().advance_body(body, start, stop)
@@ -329,9 +333,12 @@ class _ClockEngine(ErrorStateIns):
         self.state = correct_state(self.state, dx[NAV], self.earth)
         self.gyro_bias = self.gyro_bias + dx[BG]
         self.accel_bias = self.accel_bias + dx[BA]
+        P_new = self._guard(P_new)
         if self.n_states == 17:
             self.clock = self.clock - dx[CB:CD + 1]  # estimate minus truth: remove it
-        self._start_interval(self._guard(P_new))
+            self.P_nc, self.P_cc = P_new[:15, CB:].copy(), P_new[CB:, CB:].copy()
+            self._fresh = True
+        self._start_interval(P_new[:15, :15].copy())
 
 
 # ============================================================================ options
@@ -419,7 +426,7 @@ class _TightlyCoupled:
         if m == 0:
             return None, 0
         eng = self.engine
-        P = eng.covariance
+        P = eng.full_covariance()
         try:
             dx, P_new, nis = self._kalman(P, sat_pos, sat_vel, z, R, m)
         except np.linalg.LinAlgError:
