@@ -531,8 +531,10 @@ class BodyTerms:
         omega - b_g, f - b_a changes them by::
 
             dPhi = -b_g T
-            ddV  = -b_a T - (b_g x DV + DTheta x b_a) / 2                    (first-order sculling)
-            ddS  = -b_a T^2/2 - T (b_g x DV + DTheta x b_a) / 6
+            ddV  = -b_a T - T (b_g x DV + DTheta x b_a) / 2                  (first-order sculling)
+            ddS  = -b_a T^2/2 - T^2 (b_g x DV + DTheta x b_a) / 6
+
+        (with ``- T b_g x b_a`` added inside the brackets: the bilinear remainder).
 
         (DTheta, DV the raw first-order increments). What is left is of order
         ``b x omega' T^3`` per step: for 1e-3 rad/s of bias (consumer MEMS) and a 0.01 s
@@ -551,7 +553,8 @@ class BodyTerms:
         ba = np.asarray(accel_bias, dtype=float)
         th, dv = self.dtheta1[sl], self.dv1[sl]
         phi = self.phi[sl] - bg * T
-        cross = _cross(np.broadcast_to(bg, dv.shape), dv) + _cross(th, np.broadcast_to(ba, th.shape))
+        cross = T * (_cross(np.broadcast_to(bg, dv.shape), dv) + _cross(th, np.broadcast_to(ba, th.shape)))
+        cross = cross - (T * T) * np.cross(bg, ba)  # the bilinear remainder (b_g T) x (b_a T)
         dv_b = self.dv_b[sl] - ba * T - 0.5 * cross
         ds_b = None if self.ds_b is None else self.ds_b[sl] - ba * (0.5 * T * T) - (T / 6.0) * cross
         return quat_from_rotvec(phi), dv_b, ds_b, dv - ba * T

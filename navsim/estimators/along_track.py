@@ -458,9 +458,9 @@ class AlongTrackFilter:
         x = self.x
         s, v, b = float(x[0]), float(x[1]), float(x[2])
         dt = self.dt
-        a = self.table.gravity_along(s + 0.5 * v * dt) - b  # (AT.5) mid-step grade
+        a = self.table.gravity_along(s + 0.5 * dt * v) - b  # (AT.5) mid-step grade
         x[1] = v + dv_y + a * dt  # (AT.6)
-        x[0] = s + v * dt + ds2_y + 0.5 * a * dt * dt  # (AT.7)
+        x[0] = s + v * dt + ds2_y + 0.5 * dt * dt * a  # (AT.7)
         x[2] = b * self.decay  # (AT.3) Gauss-Markov mean
         if self.n_x == 5:
             x[3] = x[3] + x[4] * dt  # (AT.4)
@@ -561,7 +561,8 @@ class AlongTrackFilter:
         dt_n = table.evaluate(s, table.T_N, 1)
         t_n = vals[:, 3:6]
         w_n = table.rotation_per_m(s)
-        sol = np.column_stack([vals[:, 0:3], v[:, None] * t_n, vals[:, 6:9]])
+        heading = np.remainder(vals[:, 6] + math.pi, 2.0 * math.pi) - math.pi  # table heading is unwrapped
+        sol = np.column_stack([vals[:, 0:3], v[:, None] * t_n, heading, vals[:, 7:9]])
         k = len(s)
         J = np.zeros((k, 9, self.n_x))
         J[:, 0:3, 0] = t_n  # dp = t_n ds
@@ -631,17 +632,29 @@ class AlongTrackFilter:
         dof_out = np.zeros(n, dtype=int)
         pending: list[int] = []  # steps of the current interval whose P is computed in one go
         pending_k: list[int] = []
+        gravity_along = self.table.gravity_along
+        dt, decay, clock = self.dt, self.decay, self.n_x == 5
+        half_dt, half_dt2 = 0.5 * dt, 0.5 * dt * dt
+        x = self.x
+        s, v, b = float(x[0]), float(x[1]), float(x[2])
+        cb, cd = (float(x[3]), float(x[4])) if clock else (0.0, 0.0)
         for i in range(n):
-            self._propagate_mean(dv_y[i], ds2_y[i])
+            # the arithmetic of _propagate_mean on Python floats: (AT.5)-(AT.7), (AT.3), (AT.4)
+            a = gravity_along(s + half_dt * v) - b
+            s, v = s + v * dt + ds2_y[i] + half_dt2 * a, v + dv_y[i] + a * dt
+            b = b * decay
+            if clock:
+                cb = cb + cd * dt
             self.k_in += 1
-            s_out[i], v_out[i] = self.x[0], self.x[1]
-            obs = epochs.get(i)
-            if obs is None and (steps[i] + 1) % self.cov_steps != 0:
-                pending.append(i)
-                pending_k.append(self.k_in)
-                continue
+            s_out[i], v_out[i] = s, v
             pending.append(i)
             pending_k.append(self.k_in)
+            obs = epochs.get(i)
+            if obs is None and (steps[i] + 1) % self.cov_steps != 0:
+                continue
+            x[0], x[1], x[2] = s, v, b
+            if clock:
+                x[3], x[4] = cb, cd
             P_block = self._covariance_at(np.array(pending_k))
             P_out[pending] = P_block
             self.P = P_block[-1]
@@ -649,11 +662,18 @@ class AlongTrackFilter:
             if obs is not None:
                 nis, dof = self._update(obs)
                 self._check_health()
+                x = self.x
                 if nis is not None:
                     nis_out[i], dof_out[i] = nis, dof
                     P_out[i] = self.P
-                    s_out[i], v_out[i] = self.x[0], self.x[1]
+                    s_out[i], v_out[i] = x[0], x[1]
+                s, v, b = float(x[0]), float(x[1]), float(x[2])
+                if clock:
+                    cb, cd = float(x[3]), float(x[4])
             self._start_interval()
+        x[0], x[1], x[2] = s, v, b
+        if clock:
+            x[3], x[4] = cb, cd
         if pending:
             P_out[pending] = self._covariance_at(np.array(pending_k))
         sol, cov = self._outputs(s_out, v_out, P_out)

@@ -1,0 +1,1233 @@
+"""The track-model INS/GNSS filter of seed 003 (Sokolov & Vdovichenko 2012).
+
+The vehicle moves on a known track written as longitude and height functions of latitude,
+lambda(phi), h(phi) (:mod:`navsim.track`). Position and velocity then have one degree of
+freedom each, and the filter state shrinks to the paper's reduced vector (eq. (8))::
+
+    Y = [alpha, beta, gamma, phi, V_Y]
+
+alpha, beta, gamma being the Euler-Krylov angles of the body relative to the *inertial*
+frame (Appendix 1, :func:`navsim.rotations.euler_krylov_matrix`; the inertial frame
+coincides with the Greenwich frame at t = 0), phi the latitude and V_Y the north velocity.
+East and up velocity follow from the track (003, after (6))::
+
+    V_X = lambda'(phi) cos(phi) V_Y,    V_Z = h'(phi) V_Y / (r + h).
+
+Equations implemented
+---------------------
+* State equations (7)-(8) with F, F1 of Appendix 2: ``[alpha', beta', gamma'] =
+  Phi (Z_d - W_d)``, ``phi' = V_Y / (r + h)``, ``V_Y' = C_(2)^T (Z_a - W_a) + Coriolis,
+  transport and centrifugal terms``, where ``C = D(alpha, beta, gamma) B^T`` maps ENU to
+  body and ``B = D(-phi, lambda(phi) + Omega t, 0)`` maps the inertial frame (paper axes
+  xi, eta, zeta = y_e, z_e, x_e) to ENU.
+* The autonomous accelerometer observer (13): because the vehicle stays on the track,
+  ``V_X = k(phi) V_Y`` with ``k = lambda' cos(phi)`` holds at all times, so the east
+  equation of (1), (12), and the derivative of the constraint, (10)-(11), must agree.
+  Equating them gives the x-accelerometer as a function of the state and of the other two
+  accelerometers. Written compactly with ``u = e - k n`` (the east minus k times the north
+  unit vector, body components ``u_b = C u_n``) and ``f_E - k f_N = u_b . Z_a``::
+
+      u_b . Z_a = G(phi, V_Y),   G = k A(phi, V_Y) + k_phi V_Y^2 / (r + h) - B(phi, V_Y)
+      Z_ax = H_a(Y, Z_ay, Z_az) + H_w W_a,
+      H_a = (G - u_b,y Z_ay - u_b,z Z_az) / u_b,x,   H_w = u_b^T / u_b,x
+
+  where A is the non-specific-force part of V_Y' (7) and B that of V_X' (12). This is
+  (13) term by term (``c11 - k c12 = u_b,x``, ``k c22 - c21 = -u_b,y``, ...; the literal
+  transcription :func:`printed_observer_13` is checked against it in the tests).
+* The continuous filter (14) between GNSS epochs: ``Y' = F + K (Z_ax - H_a)``,
+  ``K = (R dH_a/dY^T + F1 D_A H_w^T) (H_w D_a H_w^T)^-1`` and the Riccati equation for R,
+  i.e. the Kalman-Bucy filter with correlated process and measurement noise (W_a drives
+  V_Y and is in Z_ax).
+* The discrete update (16) at GNSS epochs with the pseudoranges and Dopplers (9) of every
+  valid satellite (H_R(phi), H_V(phi, V_Y), ECEF geometry from lambda(phi), h(phi),
+  ``V_S = [k, 1, h'/(r+h)] V_Y``) stacked, as in (15), with the accelerometer
+  observation. During outages (no valid satellite) only the accelerometer observer runs.
+
+Printed formulas that are wrong (evidence in ``tests/estimators/test_paper_ekf.py``)
+-----------------------------------------------------------------------------------
+* Kinematics: the printed Phi(beta, gamma) of (1)/(7) is the kinematic matrix of D with
+  alpha and beta interchanged (see :mod:`navsim.rotations`); used literally it drives the
+  angles away from the true attitude within seconds (alpha ~ -phi ~ -47 deg here).
+  Corrected: ``[alpha', beta', gamma'] = Phi(alpha, gamma) omega`` (finite differences of D).
+* Centrifugal sign: (1), (7), Appendix 2 and (13) carry ``+Omega^2 (r+h) cos(phi)
+  sin(phi)`` in V_Y'; the plumb-line gravity has ``-`` (:meth:`navsim.earth.EarthModel.
+  gravity_n`). On the spherical Earth of the example that is a 2 x 0.017 = 0.034 m/s^2 error
+  of the north acceleration.
+* Appendix 3's H_w is ``(c11 - k c12)^-1 [C_(1)^T - k C_(2)^T]`` multiplied by the braces
+  ``{(2 Omega + ...) V_Y (sin phi - ...)}`` that belong to H_a (the page break of the
+  appendix spliced the end of H_a into H_w; H_a itself is cut off there). The dimensionally
+  correct H_w is the one of (13), ``(c11 - k c12)^-1 [C_(1)^T - k C_(2)^T]``; navsim uses it
+  in both modes. (1)'s Coriolis term (printed ``+ omega x V`` with 2 Omega on the north
+  but not on the vertical Earth-rate component) is not needed: (7) and (12), which the
+  filter uses, agree with ``-(2 omega_ie + omega_en) x V``.
+* B: one place prints ``B = D(lambda + Omega t, -phi, 0)``; only ``D(-phi, lambda +
+  Omega t, 0)`` is the ENU frame (module notes of :mod:`navsim.rotations`); used throughout.
+* (16) weighs Z_ax with the intensity D_a as if it were a variance; a step-mean
+  accelerometer sample has variance ``H_w D_a H_w^T / dt``, used here.
+
+Modes
+-----
+``mode="faithful"``
+    The paper's model: spherical Earth (r = the context Earth's radius if it is
+    spherical, else :data:`navsim.earth.SPHERICAL`), the reduced 5-state, no receiver
+    clock, white sensor noise only, Z_ax stacked into the epoch update (16).
+    ``as_printed=False`` (default) uses the corrected kinematics and centrifugal sign;
+    ``as_printed=True`` keeps both printed errors, or pass a subset of
+    ``{"kinematics", "centrifugal"}`` to show one effect at a time.
+``mode="extended"``
+    Where the printed model falls short, each switched on only when needed:
+    receiver clock bias and drift states (two-state clock, PSDs of the nominal GNSS spec)
+    when ``context.gnss.clock_modelled`` (a standalone receiver's pseudoranges are off
+    by thousands of metres otherwise); WGS-84 radii R_N, R_E in phi' = V_Y/(R_N + h),
+    ``k = lambda' cos(phi) (R_E + h)/(R_N + h)``, the transport rates and the ellipsoidal
+    ECEF position when ``context.earth`` is WGS-84 (the normal gravity has no north
+    component there, so the centrifugal term of (7) drops); first-order Gauss-Markov
+    accelerometer and gyro bias states (3 + 3) when the nominal IMU has bias sigmas
+    (the accelerometer observer is biased one-to-one by an accelerometer bias, and a gyro
+    bias integrates into the angles during an outage); Z_ax is *not* stacked into the
+    epoch update (the continuous observer has already used that step's sample, so (16)
+    counts one step twice, a 1 % effect on one second's accelerometer information).
+Any track
+    The equations need lambda(phi), h(phi). A :class:`~navsim.track.PolynomialTrack` is
+    used exactly; a :class:`~navsim.track.PiecewisePolynomialTrack` of degree <= 3 piece by
+    piece; any other track (e.g. a :class:`~navsim.track.SplineTrack` from waypoints) is
+    first fitted with :func:`navsim.track.fit_polynomial_track` (cubic pieces, C^2, to
+    ``fit_tolerance_m``) - in both modes, since without lambda(phi) there is no filter.
+    Tracks that turn back in latitude or run east-west (k -> infinity, u_b,x -> 0) cannot
+    be written this way: :func:`~navsim.track.fit_polynomial_track` raises then, and near
+    east-west headings the observer degrades; use an arc-length estimator.
+
+Numerical choices
+-----------------
+* Inputs inside a step: navsim gives the r-fold integrals dtheta_r, dv_r (r = 1..R) of the
+  step. ``input_model="polynomial"`` (default) reconstructs omega(t) and f(t) as the
+  polynomial of degree R-1 whose r-fold integrals match them exactly (an R x R inversion
+  of ``I_r = dt^r sum_j c_j j!/(j+r)!``), so the RK4 stages see the rates at the step
+  start, middle and end and Simpson's rule on the cubic returns dtheta_1, dv_1 exactly.
+  ``input_model="mean"`` uses dtheta_1/dt, dv_1/dt.
+* The state (14) is integrated by RK4 every navigation step with the gain held over the
+  step. The Riccati equation is integrated by RK4 with its coefficients (dF/dY,
+  dH_a/dY, Q, correlation, H_w D_a H_w^T) frozen at the start of each covariance interval
+  of ``cov_step_s`` (default: the navigation step; it must divide the GNSS period, and
+  intervals end at epochs); the gain is held over the interval and the output covariance
+  of the steps inside it is interpolated linearly. The gain K(t) = (R dH^T + S)/sigma^2
+  of a fresh filter is enormous (the accelerometer observer resolves one attitude axis to
+  ~1e-6 rad in a second, the prior is 1.7e-3 rad): the equations are stiff at the start,
+  with rate ``dH K ~ 1/t``. Where ``rate x interval > stiffness_limit`` the interval is
+  shortened, down to adaptive sub-steps of ``stiffness_limit / rate`` inside a step
+  (about 2 ln(rate0 dt) / stiffness_limit sub-steps in all, ~40 at the start of the
+  example), each with fresh coefficients and gain.
+* The Jacobians of F and H_a are analytic in the angles and V_Y and use the complex-step
+  derivative in phi (exact to rounding, no subtraction error; the track polynomials and
+  radii are complex-safe); the tests compare them with central finite differences.
+* The prior (9 x 9 over ENU position, velocity, attitude) is projected on the state by
+  weighted least squares along the track (phi and V_Y) and by the attitude Jacobian.
+* Output: lat = phi, lon = lambda(phi), h = h(phi), velocity_n = [k V_Y, V_Y, m V_Y],
+  heading/pitch/roll of ``mat_nb = B(phi, lambda + Omega t) D^T``; the 9 x 9 covariance
+  is ``J R J^T`` with J the Jacobian of that conversion (rank 5: position errors only along
+  the track; attitude errors psi = mat_nb sum_i a_i dtheta_i - theta_n dphi about ENU axes,
+  theta_n = [-1, lambda' cos phi, lambda' sin phi] dphi the rotation of the ENU frame).
+
+References
+----------
+.. [003] Sokolov S.V., Vdovichenko S.S., "Synthesis of algorithms of inertial-satellite
+   navigation systems on the basis of spatial models of motion", Nauchnoe
+   Priborostroenie, 2012 (seed 003): eqs. (1), (7)-(16), Appendices 1-3.
+.. [2] Tikhonov V.I., Kharisov V.N., Statistical analysis and synthesis of radio
+   engineering devices and systems, 1991 (ref. [6] of 003): Gaussian continuous-discrete
+   filtering.
+.. [3] Brown R.G., Hwang P.Y.C., Introduction to Random Signals and Applied Kalman
+   Filtering, 4th ed., 2012: Kalman-Bucy filter with correlated process and measurement
+   noise (sec. 8.2), two-state clock model (sec. 9.3), Joseph form.
+.. [4] Martins J.R.R.A., Sturdza P., Alonso J.J., "The complex-step derivative
+   approximation", ACM TOMS 29 (2003) 245-262.
+.. [5] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+   Systems, 2nd ed., 2013, sec. 2.4 and 5.4 (local-level mechanisation).
+"""
+
+from __future__ import annotations
+
+import bisect
+import cmath
+import math
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+from numpy.polynomial import Polynomial
+
+from ..earth import SPHERICAL, EarthModel
+from ..errors import ConfigError
+from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+
+__all__ = [
+    "PaperEkf",
+    "PaperEkfConfig",
+    "TrackFunctions",
+    "paper_state",
+    "input_polynomial_matrix",
+    "printed_observer_13",
+    "printed_state_rhs",
+]
+
+_PRINTED_ITEMS = frozenset({"kinematics", "centrifugal"})
+_CSTEP = 1e-20  # complex-step size, rad
+
+
+# ============================================================================ config
+@dataclass(frozen=True, slots=True)
+class PaperEkfConfig:
+    """Options of :class:`PaperEkf` (validated; see the module docstring).
+
+    mode : "faithful" or "extended".
+    as_printed : bool or frozenset of {"kinematics", "centrifugal"}: printed errors kept.
+    cov_step_s : covariance (Riccati) step, s; None = the navigation step.
+    input_model : "polynomial" or "mean" (inputs inside a step).
+    accel_in_update : stack Z_ax into the epoch update (16); None = True in faithful,
+        False in extended mode.
+    bias_states : "auto" (extended mode: when the nominal IMU has bias sigmas), "on", "off".
+    fit_tolerance_m : tolerance of the lambda(phi) fit of non-polynomial tracks, m.
+    stiffness_limit : largest (gain rate x interval) integrated in one RK4 step.
+    """
+
+    mode: str = "faithful"
+    as_printed: frozenset = frozenset()
+    cov_step_s: float | None = None
+    input_model: str = "polynomial"
+    accel_in_update: bool | None = None
+    bias_states: str = "auto"
+    fit_tolerance_m: float = 0.1
+    stiffness_limit: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("faithful", "extended"):
+            raise ConfigError("mode", "'faithful' or 'extended'", self.mode)
+        printed = self.as_printed
+        if printed is True:
+            printed = _PRINTED_ITEMS
+        elif printed is False or printed is None:
+            printed = frozenset()
+        elif isinstance(printed, str):
+            printed = frozenset({printed})
+        try:
+            printed = frozenset(printed)
+        except TypeError:
+            raise ConfigError("as_printed", f"a bool or a subset of {sorted(_PRINTED_ITEMS)}", self.as_printed) from None
+        if not printed <= _PRINTED_ITEMS:
+            raise ConfigError("as_printed", f"a bool or a subset of {sorted(_PRINTED_ITEMS)}", self.as_printed)
+        if printed and self.mode != "faithful":
+            raise ConfigError("as_printed", "only with mode='faithful'", self.as_printed)
+        object.__setattr__(self, "as_printed", printed)
+        if self.cov_step_s is not None and not (isinstance(self.cov_step_s, (int, float)) and self.cov_step_s > 0):
+            raise ConfigError("cov_step_s", "None or a positive step (s)", self.cov_step_s)
+        if self.input_model not in ("polynomial", "mean"):
+            raise ConfigError("input_model", "'polynomial' or 'mean'", self.input_model)
+        if self.accel_in_update not in (None, True, False):
+            raise ConfigError("accel_in_update", "None, True or False", self.accel_in_update)
+        if self.bias_states not in ("auto", "on", "off"):
+            raise ConfigError("bias_states", "'auto', 'on' or 'off'", self.bias_states)
+        if not (isinstance(self.fit_tolerance_m, (int, float)) and self.fit_tolerance_m > 0):
+            raise ConfigError("fit_tolerance_m", "a positive tolerance (m)", self.fit_tolerance_m)
+        if not (isinstance(self.stiffness_limit, (int, float)) and 0 < self.stiffness_limit <= 2.5):
+            raise ConfigError("stiffness_limit", "a number in (0, 2.5] (RK4 is stable below 2.78)", self.stiffness_limit)
+
+
+# ============================================================================ track
+class TrackFunctions:
+    """lambda(phi), h(phi) and derivatives as fast scalar (complex-safe) and array functions.
+
+    Built from a :class:`~navsim.track.PolynomialTrack` (exact), a
+    :class:`~navsim.track.PiecewisePolynomialTrack` of degree <= 3 (exact, piece by piece)
+    or any other track via :func:`~navsim.track.fit_polynomial_track` (cubic, C^2).
+
+    Attributes
+    ----------
+    fit : PolynomialFit or None
+        The fit, when one was needed.
+    """
+
+    def __init__(self, track, fit_tolerance_m: float = 0.1):
+        from ..track import PiecewisePolynomialTrack, PolynomialTrack, fit_polynomial_track
+
+        self.fit = None
+        if not isinstance(track, (PolynomialTrack, PiecewisePolynomialTrack)) or (
+                isinstance(track, PiecewisePolynomialTrack) and track.degree > 3):
+            self.fit = fit_polynomial_track(track, degree=3, max_error_m=fit_tolerance_m)
+            track = self.fit.track
+        self.track = track
+        if isinstance(track, PolynomialTrack):
+            lam = Polynomial(track.lam_coeffs)
+            if track.h_coeffs.ndim == 1:
+                hp = Polynomial(track.h_coeffs)
+            else:  # h(lambda, phi) composed with lambda(phi) (003, introduction)
+                hp, lam_pow = Polynomial([0.0]), Polynomial([1.0])
+                for row in track.h_coeffs:
+                    hp = hp + lam_pow * Polynomial(row)
+                    lam_pow = lam_pow * lam
+            lam_c = list(lam.coef)
+            lam_c[0] += track.lam0
+            self.breaks = [track.phi0]
+            self.lam_c = [tuple(float(c) for c in lam_c)]
+            self.h_c = [tuple(float(c) for c in hp.coef)]
+        else:
+            xs = [float(x) for x in track.breakpoints]
+            self.breaks = xs[:-1]
+            self.lam_c, self.h_c = [], []
+            for x in self.breaks:
+                self.lam_c.append(tuple(float(track.lam(x, j)) / math.factorial(j) for j in range(4)))
+                self.h_c.append(tuple(float(track.height(x, j)) / math.factorial(j) for j in range(4)))
+        # pad to cubics where possible (explicit Horner below), keep higher degrees general
+        deg = max(max(len(c) for c in self.lam_c), max(len(c) for c in self.h_c))
+        self.cubic = deg <= 4
+        if self.cubic:
+            self.lam_c = [tuple(c) + (0.0,) * (4 - len(c)) for c in self.lam_c]
+            self.h_c = [tuple(c) + (0.0,) * (4 - len(c)) for c in self.h_c]
+        self.single = len(self.breaks) == 1
+        self._lam_arr = np.array([c + (0.0,) * (deg - len(c)) for c in self.lam_c])
+        self._h_arr = np.array([c + (0.0,) * (deg - len(c)) for c in self.h_c])
+        self._breaks_arr = np.array(self.breaks)
+
+    def _piece(self, phi) -> int:
+        if self.single:
+            return 0
+        i = bisect.bisect_right(self.breaks, phi.real) - 1
+        return 0 if i < 0 else i
+
+    def scalars(self, phi):
+        """(lam, lam', lam'', h, h') at one latitude (float or complex), rad / m."""
+        i = self._piece(phi)
+        x = phi - self.breaks[i]
+        if self.cubic:
+            a0, a1, a2, a3 = self.lam_c[i]
+            b0, b1, b2, b3 = self.h_c[i]
+            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
+                    b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x))
+        lam = _horner2(self.lam_c[i], x)
+        hh = _horner2(self.h_c[i], x)
+        return lam[0], lam[1], lam[2], hh[0], hh[1]
+
+    def arrays(self, phi: np.ndarray):
+        """(lam, lam', lam'', h, h', h'') over an array of latitudes."""
+        phi = np.asarray(phi, dtype=float)
+        idx = np.clip(np.searchsorted(self._breaks_arr, phi, side="right") - 1, 0, len(self.breaks) - 1)
+        x = phi - self._breaks_arr[idx]
+        out = []
+        for arr in (self._lam_arr, self._h_arr):
+            c = arr[idx]  # (n, deg)
+            p = np.zeros_like(x)
+            d1 = np.zeros_like(x)
+            d2 = np.zeros_like(x)
+            for j in range(c.shape[-1] - 1, -1, -1):
+                d2 = d2 * x + 2.0 * d1
+                d1 = d1 * x + p
+                p = p * x + c[..., j]
+            out.append((p, d1, d2))
+        (lam, dlam, ddlam), (hh, dh, ddh) = out
+        return lam, dlam, ddlam, hh, dh, ddh
+
+
+def _horner2(c, x):
+    """Value, first and second derivative of sum c_j x^j."""
+    p = 0.0 * x
+    d1 = 0.0 * x
+    d2 = 0.0 * x
+    for cj in reversed(c):
+        d2 = d2 * x + 2.0 * d1
+        d1 = d1 * x + p
+        p = p * x + cj
+    return p, d1, d2
+
+
+# ============================================================================ inputs
+def input_polynomial_matrix(orders: int) -> np.ndarray:
+    """M^-1 for the polynomial input model: ``c = M^-1 [I_r / dt^r]``, shape (R, R).
+
+    A signal ``g(t0 + s dt) = sum_j c_j s^j`` (j < R) has the r-fold integrals (seed 000
+    eq. (1.14), Cauchy's formula) ``I_r = dt^r sum_j c_j j! / (j + r)!``; M holds those
+    factors, so the inversion recovers the unique degree R-1 polynomial with the given
+    increments (exact for signals that are such polynomials).
+    """
+    R = int(orders)
+    m = np.array([[math.factorial(j) / math.factorial(j + r) for j in range(R)] for r in range(1, R + 1)])
+    return np.linalg.inv(m)
+
+
+# ============================================================================ helpers
+def _enu_rows_paper(phi, psi, sin=math.sin, cos=math.cos):
+    """Rows e, n, u of B = D(-phi, psi, 0) in paper axes (xi, eta, zeta) (east, north, up)."""
+    sp, cp, ss, cs = sin(phi), cos(phi), sin(psi), cos(psi)
+    return (cs, 0.0, -ss), (-ss * sp, cp, -cs * sp), (ss * cp, sp, cs * cp)
+
+
+def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float) -> np.ndarray:
+    """The paper's state [alpha, beta, gamma, phi, V_Y] of a navigation solution, (n, 5).
+
+    alpha, beta, gamma from ``D = mat_nb^T B(lat, lon + Omega t)`` (body relative to the
+    inertial frame, paper axes); phi = lat; V_Y = north velocity. Vectorised (truth or
+    estimates; used for the 5-state NEES).
+    """
+    lat = np.atleast_1d(np.asarray(lat, dtype=float))
+    lon = np.atleast_1d(np.asarray(lon, dtype=float))
+    t = np.broadcast_to(np.asarray(t, dtype=float), lat.shape)
+    velocity_n = np.asarray(velocity_n, dtype=float).reshape(-1, 3)
+    mat_nb = mat_nb_from_hpr(heading, pitch, roll).reshape(-1, 3, 3)
+    b = euler_krylov_matrix(-lat, lon + earth_rate * t, 0.0)
+    d = np.swapaxes(mat_nb, -1, -2) @ b
+    alpha, beta, gamma = euler_krylov_from_matrix(d)
+    return np.column_stack([alpha, beta, gamma, lat, velocity_n[:, 1]])
+
+
+# ============================================================================ estimator
+class PaperEkf:
+    """Seed 003's reduced-state track-model filter (14)/(16); see the module docstring.
+
+    Parameters
+    ----------
+    mode : {"faithful", "extended"}
+        faithful: the paper's model (spherical Earth, 5 states, no clock); extended: clock,
+        WGS-84 and bias states where the context needs them.
+    as_printed : bool or iterable of {"kinematics", "centrifugal"}
+        faithful mode only: keep the printed kinematic matrix and/or centrifugal sign.
+    cov_step_s : float, optional
+        Riccati RK4 step (a divisor of the GNSS period), default the navigation step.
+    input_model : {"polynomial", "mean"}
+        omega(t), f(t) inside a step from all multiple integrals, or dtheta/dt, dv/dt.
+    accel_in_update : bool, optional
+        Stack Z_ax into the epoch update (16). Default: faithful yes, extended no.
+    bias_states : {"auto", "on", "off"}
+        Gauss-Markov accelerometer and gyro bias states (extended mode; "auto": when the
+        nominal IMU has bias sigmas).
+    fit_tolerance_m : float
+        lambda(phi) fit tolerance for non-polynomial tracks, m.
+    stiffness_limit : float
+        Largest gain-rate x interval per RK4 step (start-up stiffness, see module).
+
+    Notes
+    -----
+    ``Estimate.extra`` holds ``state`` (the state vector), ``state_cov``, ``diverged``
+    and, when present, ``clock_bias_m``, ``clock_drift_mps``, ``accel_bias``,
+    ``gyro_bias``. After :meth:`step_batch`, ``last_states`` / ``last_state_cov`` hold
+    the batch's state vectors (n, ns) and covariances (n, ns, ns).
+    """
+
+    def __init__(self, mode: str = "faithful", as_printed: bool | Iterable[str] = False,
+                 cov_step_s: float | None = None, input_model: str = "polynomial",
+                 accel_in_update: bool | None = None, bias_states: str = "auto",
+                 fit_tolerance_m: float = 0.1, stiffness_limit: float = 0.5) -> None:
+        self.config = PaperEkfConfig(mode, as_printed, cov_step_s, input_model, accel_in_update,
+                                     bias_states, fit_tolerance_m, stiffness_limit)
+        self._ready = False
+
+    # ------------------------------------------------------------------ set-up
+    def reset(self, context: Context, prior) -> None:
+        """Start an episode: model constants from the context, state from the prior."""
+        cfg = self.config
+        self.context = context
+        earth: EarthModel = context.earth
+        faithful = cfg.mode == "faithful"
+        # --- Earth used by the filter
+        if faithful or earth.f == 0.0:
+            sph = earth if earth.f == 0.0 else SPHERICAL
+            self._sphere, self._a, self._e2 = True, float(sph.a), 0.0
+            self._omega = float(sph.rate)
+        else:
+            self._sphere, self._a, self._e2 = False, float(earth.a), float(earth.e2)
+            self._omega = float(earth.rate)
+        self._filter_earth = EarthModel("filter", self._a, 0.0 if self._sphere else earth.f, self._omega, earth.gm)
+        printed = cfg.as_printed
+        self._printed_kin = "kinematics" in printed
+        # (7): printed +Omega^2 (r+h) cos sin; physics (plumb line) -; WGS-84 normal gravity: 0
+        self._cent = (1.0 if "centrifugal" in printed else -1.0) if self._sphere else 0.0
+        self.track_functions = TrackFunctions(context.track, cfg.fit_tolerance_m)
+        # --- noise
+        imu, gnss = context.imu, context.gnss
+        self._qd = float(imu.gyro_arw) ** 2  # D_d, rad^2/s
+        self._qa = float(imu.accel_vrw) ** 2  # D_a, m^2/s^3
+        if self._qa <= 0.0:
+            self._qa = (1e-6) ** 2  # an ideal accelerometer would make (14) singular
+        self._r_code = max(float(gnss.pseudorange_sigma_m), 1e-3) ** 2
+        self._r_dopp = max(float(gnss.doppler_sigma_mps), 1e-4) ** 2
+        # --- extra states
+        self._clock = (not faithful) and bool(gnss.clock_modelled)
+        if faithful or cfg.bias_states == "off":
+            biases = False
+        elif cfg.bias_states == "on":
+            biases = True
+        else:
+            biases = imu.accel_bias_sigma > 0.0 or imu.gyro_bias_sigma > 0.0
+        self._biases = biases
+        self._accel_in_update = faithful if cfg.accel_in_update is None else bool(cfg.accel_in_update)
+        n = 5
+        self._i_clk = n if self._clock else None
+        n += 2 if self._clock else 0
+        self._i_ba = n if biases else None
+        n += 3 if biases else 0
+        self._i_bg = n if biases else None
+        n += 3 if biases else 0
+        self.n_states = n
+        # --- time base
+        dt = float(context.nav_period_s)
+        self._dt = dt
+        spe = context.gnss_period_s / dt
+        self._spe = max(int(round(spe)), 1)
+        cov_step = dt if cfg.cov_step_s is None else float(cfg.cov_step_s)
+        n_c = cov_step / dt
+        if abs(n_c - round(n_c)) > 1e-9 or round(n_c) < 1 or self._spe % int(round(n_c)) != 0:
+            raise ConfigError("cov_step_s", f"a whole multiple of the navigation step {dt} s dividing the GNSS "
+                              f"period {context.gnss_period_s} s", cfg.cov_step_s)
+        self._n_c = int(round(n_c))
+        R = int(context.orders)
+        if cfg.input_model == "mean" or R == 1:
+            minv = np.zeros((R, R))
+            minv[0, 0] = 1.0
+        else:
+            minv = input_polynomial_matrix(R)
+        self._minv = minv
+        s_pts = np.array([0.0, 0.5, 1.0])
+        self._lvec = (s_pts[:, None] ** np.arange(R)[None, :]) @ minv  # (3, R)
+        self._dt_pow = np.array([dt ** (r + 1) for r in range(R)])
+        # --- stage functions
+        self._stage = self._make_stage(math.sin, math.cos, math.sqrt, self.track_functions.scalars)
+        self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, self.track_functions.scalars)
+        # --- initial state
+        y0, p0 = self._state_from_prior(prior)
+        self._Y = y0
+        self._P = p0
+        self._K = None
+        self._cov_left = 0
+        self._P_start = p0.copy()
+        self._cov_len = 1
+        self._cov_pos = 0
+        self._diverged = False
+        self._t_prev = float(prior.t)
+        self.substeps = 0
+        self._ready = True
+
+    def _state_from_prior(self, prior) -> tuple[list, np.ndarray]:
+        tf = self.track_functions
+        p9 = np.asarray(prior.covariance, dtype=float)
+        phi = float(prior.lat)
+        w_pos = np.linalg.inv(p9[:3, :3])
+        g_phi = np.zeros(3)
+        for _ in range(4):  # Gauss-Newton projection of the prior position on the track
+            lam, dlam, _, hh, dh = tf.scalars(phi)
+            rn, re = self._radii(phi, hh, dh)[:2]
+            cp = math.cos(phi)
+            resid = np.array([(prior.lon - lam) * re * cp, (prior.lat - phi) * rn, prior.h - hh])
+            jac = np.array([re * cp * dlam, rn, dh])
+            info = jac @ w_pos @ jac
+            g_phi = (w_pos @ jac) / info
+            phi += float(g_phi @ resid)
+        lam, dlam, _, hh, dh = tf.scalars(phi)
+        rn, re, k, _, m = self._radii(phi, hh, dh, dlam)
+        tv = np.array([k, 1.0, m])
+        w_vel = np.linalg.inv(p9[3:6, 3:6])
+        g_v = (w_vel @ tv) / (tv @ w_vel @ tv)
+        v = float(g_v @ np.asarray(prior.velocity_n, dtype=float))
+        mat_nb = mat_nb_from_hpr(prior.heading, prior.pitch, prior.roll)
+        bmat = euler_krylov_matrix(-phi, lam + self._omega * prior.t, 0.0)
+        alpha, beta, gamma = (float(x) for x in euler_krylov_from_matrix(mat_nb.T @ bmat))
+        # psi (ENU small angles) -> body rotation mat_bn psi -> angle increments Phi(alpha, gamma)
+        j_att = self._kin_matrix(alpha, beta, gamma, printed=False) @ mat_nb.T
+        g = np.zeros((5, 9))
+        g[0:3, 6:9] = j_att
+        g[3, 0:3] = g_phi
+        g[4, 3:6] = g_v
+        p5 = g @ p9 @ g.T
+        n = self.n_states
+        p = np.zeros((n, n))
+        p[:5, :5] = 0.5 * (p5 + p5.T)
+        y = [alpha, beta, gamma, phi, v] + [0.0] * (n - 5)
+        ctx = self.context
+        if self._clock:
+            i = self._i_clk
+            p[i, i] = max(ctx.gnss.clock_bias_sigma_m, 1.0) ** 2
+            p[i + 1, i + 1] = max(ctx.gnss.clock_drift_sigma_mps, 0.01) ** 2
+        if self._biases:
+            for i in range(3):
+                p[self._i_ba + i, self._i_ba + i] = max(ctx.imu.accel_bias_sigma, 1e-6) ** 2
+                p[self._i_bg + i, self._i_bg + i] = max(ctx.imu.gyro_bias_sigma, 1e-9) ** 2
+        return y, p
+
+    def _radii(self, phi, hh, dh, dlam=0.0):
+        """(rho_N, rho_E, k, k unused, m) at phi: rho = R + h, k = V_E / V_N, m = V_U / V_N."""
+        if self._sphere:
+            rn = re = self._a + hh
+        else:
+            s = math.sin(phi)
+            w = 1.0 - self._e2 * s * s
+            r_e = self._a / math.sqrt(w)
+            rn, re = r_e * (1.0 - self._e2) / w + hh, r_e + hh
+        k = dlam * math.cos(phi) * re / rn
+        return rn, re, k, None, dh / rn
+
+    def _kin_matrix(self, a, b, g, printed: bool | None = None) -> np.ndarray:
+        """The kinematic matrix of the model: corrected Phi(alpha, gamma) or printed Phi(beta, gamma)."""
+        sg, cg = math.sin(g), math.cos(g)
+        if self._printed_kin if printed is None else printed:  # (1) as printed
+            cb, tb = math.cos(b), math.tan(b)
+            return np.array([[sg / cb, cg / cb, 0.0], [cg, -sg, 0.0], [sg * tb, cg * tb, 1.0]])
+        ca, ta = math.cos(a), math.tan(a)
+        return np.array([[cg, -sg, 0.0], [sg / ca, cg / ca, 0.0], [sg * ta, cg * ta, 1.0]])
+
+    # ------------------------------------------------------------------ the model
+    def _make_stage(self, sin, cos, sqrt, track_scalars):
+        """The right-hand side of (14) without the gain: F(Y) and the innovation (Z_ax - H_a).
+
+        Returns ``stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz) -> (alpha', beta',
+        gamma', phi', V_Y', innov)`` with ``innov = (u_b . f - G) / u_b,x`` = Z_ax - H_a.
+        Complex-safe when built with cmath functions (complex step in phi).
+        """
+        om = self._omega
+        two_om = 2.0 * om
+        om2 = om * om
+        sphere = self._sphere
+        a_e, e2 = self._a, self._e2
+        cent = self._cent
+        printed_kin = self._printed_kin
+
+        def stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz):
+            sa = sin(a)
+            ca = cos(a)
+            sb = sin(b)
+            cb = cos(b)
+            sg = sin(g)
+            cg = cos(g)
+            p = sg * wx + cg * wy
+            q = cg * wx - sg * wy
+            if printed_kin:  # (1) printed Phi(beta, gamma)
+                da, db, dg = p / cb, q, p * sb / cb + wz
+            else:  # Phi(alpha, gamma), the kinematics of D (Appendix 1)
+                da, db, dg = q, p / ca, p * sa / ca + wz
+            # D of Appendix 1
+            d00 = sb * sa * sg + cb * cg
+            d01 = ca * sg
+            d02 = cb * sa * sg - sb * cg
+            d10 = sb * sa * cg - cb * sg
+            d11 = ca * cg
+            d12 = cb * sa * cg + sb * sg
+            # f in the inertial (paper) axes: D^T f_b
+            fp0 = d00 * fx + d10 * fy + sb * ca * fz
+            fp1 = d01 * fx + d11 * fy - sa * fz
+            fp2 = d02 * fx + d12 * fy + cb * ca * fz
+            lam, dlam, ddlam, hh, dh = track_scalars(phi)
+            sp = sin(phi)
+            cp = cos(phi)
+            psi = lam + om * t
+            ss = sin(psi)
+            cs = cos(psi)
+            if sphere:
+                rn = re = a_e + hh
+                k = dlam * cp  # V_X = lambda' cos(phi) V_Y
+                kphi = ddlam * cp - dlam * sp
+                gn = cent * om2 * rn * cp * sp
+            else:
+                w = 1.0 - e2 * sp * sp
+                r_e = a_e / sqrt(w)
+                r_n = r_e * (1.0 - e2) / w
+                rn = r_n + hh
+                re = r_e + hh
+                dre = r_e * e2 * sp * cp / w + dh
+                drn = 3.0 * r_n * e2 * sp * cp / w + dh
+                ratio = re / rn
+                k = dlam * cp * ratio
+                kphi = (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
+                gn = 0.0
+            m = dh / rn
+            kv = k * V
+            cor = two_om * sp + kv * sp / (cp * re)  # 2 Omega sin(phi) + V_X tan(phi) / (r + h)
+            # (7): V_Y' = f_N + acc_n
+            acc_n = -cor * kv - m * V * V / rn + gn
+            # (12): V_X' = f_E + acc_e
+            acc_e = cor * V - (two_om * cp + kv / re) * m * V
+            # (10)-(12): f_E - k f_N = G
+            gterm = k * acc_n + kphi * V * V / rn - acc_e
+            f_n = cp * fp1 - sp * (ss * fp0 + cs * fp2)
+            f_e = cs * fp0 - ss * fp2
+            # u = e - k n in paper axes; u_b,x = (D u)_x = c11 - k c12
+            w0 = d00 * (cs + k * sp * ss) - d01 * k * cp + d02 * (k * sp * cs - ss)
+            return da, db, dg, V / rn, f_n + acc_n, (f_e - k * f_n - gterm) / w0  # (13): Z_ax - H_a
+
+        return stage
+
+    def _coefficients(self, Y, w, f, t):
+        """Riccati coefficients at (Y, inputs): A = dF/dY, dinnov/dY = -dH_a/dY, Q, S, sigma^2.
+
+        Returns (A (n, n), hneg (n,), Q (n, n), s (n,), sig2, first) with ``hneg`` =
+        d(Z_ax - H_a)/dY and ``first`` the stage values (F, innovation) at (Y, inputs, t),
+        which is also the first RK4 stage of the step.
+        """
+        n = self.n_states
+        a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
+        wx, wy, wz = w
+        fx, fy, fz = f
+        if self._biases:
+            ia, ig = self._i_ba, self._i_bg
+            fx, fy, fz = fx - Y[ia], fy - Y[ia + 1], fz - Y[ia + 2]
+            wx, wy, wz = wx - Y[ig], wy - Y[ig + 1], wz - Y[ig + 2]
+        sa, ca, sb, cb, sg, cg = math.sin(a), math.cos(a), math.sin(b), math.cos(b), math.sin(g), math.cos(g)
+        dmat = ((sb * sa * sg + cb * cg, ca * sg, cb * sa * sg - sb * cg),
+                (sb * sa * cg - cb * sg, ca * cg, cb * sa * cg + sb * sg),
+                (sb * ca, -sa, cb * ca))
+        lam, dlam, ddlam, hh, dh = self.track_functions.scalars(phi)
+        psi = lam + self._omega * t
+        sp, cp, ss, cs = math.sin(phi), math.cos(phi), math.sin(psi), math.cos(psi)
+        rn, re, k, _, m = self._radii(phi, hh, dh, dlam)
+        n_p = (-ss * sp, cp, -cs * sp)  # north row of B in paper axes
+        u_p = (cs - k * n_p[0], -k * cp, -ss - k * n_p[2])  # e - k n
+        d0, d1, d2 = dmat
+        n_b = (d0[0] * n_p[0] + d0[1] * n_p[1] + d0[2] * n_p[2], d1[0] * n_p[0] + d1[1] * n_p[1] + d1[2] * n_p[2],
+               d2[0] * n_p[0] + d2[1] * n_p[1] + d2[2] * n_p[2])
+        u_b = (d0[0] * u_p[0] + d0[1] * u_p[1] + d0[2] * u_p[2], d1[0] * u_p[0] + d1[1] * u_p[1] + d1[2] * u_p[2],
+               d2[0] * u_p[0] + d2[1] * u_p[1] + d2[2] * u_p[2])
+        real = self._stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz)
+        cplx = self._stage_c(a, b, g, complex(phi, _CSTEP), V, t, wx, wy, wz, fx, fy, fz)
+        d_phi = [z.imag / _CSTEP for z in cplx]
+        innov = real[5]
+        w0 = u_b[0]
+        y = innov * w0
+        zero = [0.0] * n
+        A = [list(zero) for _ in range(n)]
+        hneg = list(zero)
+        # --- kinematics rows (angles relative to inertial space: no phi, V dependence)
+        p = sg * wx + cg * wy
+        q = cg * wx - sg * wy
+        if self._printed_kin:
+            tb = sb / cb
+            A[0][1], A[0][2] = p * sb / (cb * cb), q / cb
+            A[1][2] = -p
+            A[2][1], A[2][2] = p / (cb * cb), q * tb
+        else:
+            ta = sa / ca
+            A[0][2] = -p
+            A[1][0], A[1][2] = p * sa / (ca * ca), q / ca
+            A[2][0], A[2][2] = p / (ca * ca), q * ta
+        # --- angle derivatives: dD/dtheta_i = -[a_i x] D
+        axes = ((cg, -sg, 0.0), (sg * ca, cg * ca, -sa), (0.0, 0.0, 1.0))
+        zf = (fx, fy, fz)
+        z_x_n = _cross(zf, n_b)
+        z_x_u = _cross(zf, u_b)
+        row4 = A[4]
+        for i, ax in enumerate(axes):
+            row4[i] = ax[0] * z_x_n[0] + ax[1] * z_x_n[1] + ax[2] * z_x_n[2]  # d f_N / d theta_i
+            dy = ax[0] * z_x_u[0] + ax[1] * z_x_u[1] + ax[2] * z_x_u[2]
+            dw0 = -(ax[1] * u_b[2] - ax[2] * u_b[1])
+            hneg[i] = (dy * w0 - y * dw0) / (w0 * w0)
+        # --- phi (complex step) and V_Y (analytic)
+        A[3][3] = d_phi[3]
+        A[3][4] = 1.0 / rn
+        row4[3] = d_phi[4]
+        kv = k * V
+        two_om = 2.0 * self._omega
+        if self._sphere:
+            kphi = ddlam * cp - dlam * sp
+        else:
+            kphi = float(self._kphi_c(phi))
+        acc_n_v = -(two_om * sp + 2.0 * kv * sp / (cp * re)) * k - 2.0 * m * V / rn
+        acc_e_v = (two_om * sp + 2.0 * kv * sp / (cp * re)) - (two_om * cp + 2.0 * kv / re) * m
+        g_v = k * acc_n_v + 2.0 * kphi * V / rn - acc_e_v
+        row4[4] = acc_n_v
+        hneg[3] = d_phi[5]
+        hneg[4] = -g_v / w0
+        # --- process noise F1 D_xi F1^T and correlation F1 D_A H_w^T
+        Q = [list(zero) for _ in range(n)]
+        if self._printed_kin:
+            tb = sb / cb
+            kin = ((sg / cb, cg / cb, 0.0), (cg, -sg, 0.0), (sg * tb, cg * tb, 1.0))
+        else:
+            ta = sa / ca
+            kin = ((cg, -sg, 0.0), (sg / ca, cg / ca, 0.0), (sg * ta, cg * ta, 1.0))
+        qd = self._qd
+        for i in range(3):
+            for j in range(3):
+                Q[i][j] = qd * (kin[i][0] * kin[j][0] + kin[i][1] * kin[j][1] + kin[i][2] * kin[j][2])
+        Q[4][4] = self._qa  # |C_(2)| = 1
+        s = list(zero)
+        s[4] = self._qa * k / w0  # -C_(2) D_a H_w^T, with n . u = -k
+        sig2 = self._qa * (1.0 + k * k) / (w0 * w0)  # H_w D_a H_w^T, |u| = sqrt(1 + k^2)
+        # --- extra states
+        if self._clock:
+            i = self._i_clk
+            A[i][i + 1] = 1.0
+            Q[i][i] = self.context.gnss.clock_phase_psd
+            Q[i + 1][i + 1] = self.context.gnss.clock_freq_psd
+        if self._biases:
+            imu = self.context.imu
+            ia, ig = self._i_ba, self._i_bg
+            for j in range(3):
+                for i in range(3):
+                    A[i][ig + j] = -kin[i][j]
+                row4[ia + j] = -n_b[j]
+                hneg[ia + j] = -u_b[j] / w0
+                A[ia + j][ia + j] = -1.0 / imu.accel_bias_tau_s
+                A[ig + j][ig + j] = -1.0 / imu.gyro_bias_tau_s
+                Q[ia + j][ia + j] = 2.0 * imu.accel_bias_sigma ** 2 / imu.accel_bias_tau_s + imu.accel_rrw ** 2
+                Q[ig + j][ig + j] = 2.0 * imu.gyro_bias_sigma ** 2 / imu.gyro_bias_tau_s + imu.gyro_rrw ** 2
+        return np.array(A), np.array(hneg), np.array(Q), np.array(s), sig2, real
+
+    def _kphi_c(self, phi):
+        """d k / d phi on the ellipsoid, by the same formula as in the stage function."""
+        lam, dlam, ddlam, hh, dh = self.track_functions.scalars(phi)
+        sp, cp = math.sin(phi), math.cos(phi)
+        e2 = self._e2
+        w = 1.0 - e2 * sp * sp
+        r_e = self._a / math.sqrt(w)
+        r_n = r_e * (1.0 - e2) / w
+        rn, re = r_n + hh, r_e + hh
+        dre = r_e * e2 * sp * cp / w + dh
+        drn = 3.0 * r_n * e2 * sp * cp / w + dh
+        ratio = re / rn
+        return (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
+
+    # ------------------------------------------------------------------ GNSS (9)
+    def gnss_model(self, phi, V, sat_pos_e, sat_vel_e):
+        """Predicted pseudoranges H_R(phi) and Dopplers H_V(phi, V_Y) without clock, (m,) each.
+
+        Complex-safe in phi (used for the complex-step Jacobian). Returns (h_r, h_v,
+        t_e) with t_e the ECEF velocity per unit V_Y.
+        """
+        lam, dlam, _, hh, dh = self.track_functions.scalars(phi)
+        sin, cos = (cmath.sin, cmath.cos) if isinstance(phi, complex) else (math.sin, math.cos)
+        sp, cp, sl, cl = sin(phi), cos(phi), sin(lam), cos(lam)
+        if self._sphere:
+            rn = re = self._a + hh
+            rz = re
+        else:
+            sqrt = cmath.sqrt if isinstance(phi, complex) else math.sqrt
+            w = 1.0 - self._e2 * sp * sp
+            r_e = self._a / sqrt(w)
+            rn, re = r_e * (1.0 - self._e2) / w + hh, r_e + hh
+            rz = r_e * (1.0 - self._e2) + hh
+        pos = np.array([re * cp * cl, re * cp * sl, rz * sp])  # (4) in ECEF axes
+        k = dlam * cp * re / rn
+        m = dh / rn
+        # (5): V_G = B^T V_S, V_S = [k, 1, m] V_Y; B^T columns are e, n, u in ECEF
+        t_e = np.array([-sl * k + (-sp * cl) + cp * cl * m, cl * k + (-sp * sl) + cp * sl * m, cp + sp * m])
+        d = sat_pos_e - pos
+        rho = np.sqrt(np.sum(d * d, axis=1))
+        h_v = np.sum(d * (sat_vel_e - V * t_e), axis=1) / rho  # (3)
+        return rho, h_v, t_e
+
+    # ------------------------------------------------------------------ inputs
+    def _prepare(self, dtheta_r: np.ndarray, dv_r: np.ndarray):
+        """Stage inputs (n, 21): omega and f at s = 0, 1/2, 1 and the step-mean f."""
+        dtheta_r = np.asarray(dtheta_r, dtype=float)
+        dv_r = np.asarray(dv_r, dtype=float)
+        R = self._minv.shape[0]
+        cols = []
+        scaled_w = [dtheta_r[:, r, :] / self._dt_pow[r] for r in range(R)]
+        scaled_f = [dv_r[:, r, :] / self._dt_pow[r] for r in range(R)]
+        for s in range(3):
+            for scaled in (scaled_w, scaled_f):
+                acc = self._lvec[s, 0] * scaled[0]
+                for r in range(1, R):
+                    acc = acc + self._lvec[s, r] * scaled[r]
+                cols.append(acc)
+        cols.append(scaled_f[0])
+        # order: w0 f0 w1 f1 w2 f2 fmean -> (n, 21)
+        return np.concatenate(cols, axis=1)
+
+    def _coef(self, dtheta_r, dv_r):
+        """Polynomial coefficients (R, 3) of omega(s) and f(s) of one step (sub-steps)."""
+        R = self._minv.shape[0]
+        sw = np.array([dtheta_r[r] / self._dt_pow[r] for r in range(R)])
+        sf = np.array([dv_r[r] / self._dt_pow[r] for r in range(R)])
+        return self._minv @ sw, self._minv @ sf
+
+    # ------------------------------------------------------------------ core loop
+    def _run(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r, dv_r, epochs: dict, steps: np.ndarray):
+        n = len(t_end)
+        ns = self.n_states
+        out_y = np.full((n, ns), np.nan)
+        out_p = np.full((n, ns, ns), np.nan)
+        nis = np.full(n, np.nan)
+        dof = np.zeros(n, dtype=int)
+        rows = inp.tolist()
+        times = t_end.tolist()
+        for i in range(n):
+            if self._diverged:
+                continue
+            try:
+                self._one_step(rows[i], times[i], int(steps[i]), dtheta_r[i], dv_r[i])
+                obs = epochs.get(i)
+                if obs is not None:
+                    self._cov_left = 0
+                    res = self._epoch_update(obs, rows[i][18:21], times[i])
+                    if res is not None:
+                        nis[i], dof[i] = res
+                if not math.isfinite(sum(self._Y)):
+                    raise FloatingPointError("non-finite state")
+                out_y[i] = self._Y
+                out_p[i] = self._P_now()
+            except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+                self._diverged = True
+        return out_y, out_p, nis, dof
+
+    def _P_now(self) -> np.ndarray:
+        """Covariance at the current step: linear in time inside a covariance interval."""
+        if self._cov_left <= 0 or self._cov_len <= 1:
+            return self._P
+        frac = self._cov_pos / self._cov_len
+        return self._P_start + frac * (self._P - self._P_start)
+
+    def _one_step(self, row, t1, step, dtheta_r, dv_r):
+        dt = self._dt
+        t0 = t1 - dt
+        limit = self.config.stiffness_limit
+        if self._cov_left <= 0:
+            w0 = row[0:3]
+            f0 = row[3:6]
+            A, hneg, Q, s, sig2, first = self._coefficients(self._Y, w0, f0, t0)
+            K = (self._P @ (-hneg) + s) / sig2
+            rate = abs(float(hneg @ K))
+            to_epoch = self._spe - (step % self._spe)
+            L = min(self._n_c, to_epoch)
+            if rate * dt > limit:
+                self._substeps(t0, dtheta_r, dv_r, (A, hneg, Q, s, sig2, K, rate, first))
+                self._cov_left = 0
+                self._cov_len = 1
+                return
+            if rate * L * dt > limit:
+                L = max(1, int(limit / (rate * dt)))
+            self._P_start = self._P
+            self._P = _riccati_rk4(self._P, A, hneg, Q, s, sig2, L * dt)
+            _check_covariance(self._P)
+            self._K = K.tolist()
+            self._cov_left = L
+            self._cov_len = L
+            self._cov_pos = 0
+        else:
+            first = None
+        self._state_rk4(row, t0, dt, first)
+        self._cov_left -= 1
+        self._cov_pos += 1
+
+    def _substeps(self, t0, dtheta_r, dv_r, first):
+        """Adaptive sub-steps inside one navigation step (start-up stiffness)."""
+        dt = self._dt
+        limit = self.config.stiffness_limit
+        cw, cf = self._coef(dtheta_r, dv_r)
+        R = cw.shape[0]
+
+        def at(c, s):
+            powers = np.array([s ** j for j in range(R)])
+            return (powers @ c).tolist()
+
+        s_done = 0.0
+        coeffs = first
+        while s_done < 1.0 - 1e-12:
+            if coeffs is None:
+                A, hneg, Q, s, sig2, first = self._coefficients(self._Y, at(cw, s_done), at(cf, s_done),
+                                                                t0 + s_done * dt)
+                K = (self._P @ (-hneg) + s) / sig2
+                rate = abs(float(hneg @ K))
+            else:
+                A, hneg, Q, s, sig2, K, rate, first = coeffs
+                coeffs = None
+            tau = min((1.0 - s_done) * dt, limit / max(rate, 1e-300))
+            s_mid = s_done + 0.5 * tau / dt
+            s_end = s_done + tau / dt
+            row = at(cw, s_done) + at(cf, s_done) + at(cw, s_mid) + at(cf, s_mid) + at(cw, s_end) + at(cf, s_end)
+            self._P = _riccati_rk4(self._P, A, hneg, Q, s, sig2, tau)
+            _check_covariance(self._P)
+            self._K = K.tolist()
+            self._state_rk4(row, t0 + s_done * dt, tau, first)
+            s_done = s_end
+            self.substeps += 1
+
+    def _state_rk4(self, row, t0, tau, first=None):
+        """RK4 of (14) over tau with the gain K held: Y' = F(Y) + K (Z_ax - H_a(Y))."""
+        Y = self._Y
+        K = self._K
+        stage = self._stage
+        a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
+        w1x, w1y, w1z, f1x, f1y, f1z, w2x, w2y, w2z, f2x, f2y, f2z, w3x, w3y, w3z, f3x, f3y, f3z = row[:18]
+        if self._biases:
+            ia, ig = self._i_ba, self._i_bg
+            bax, bay, baz, bgx, bgy, bgz = Y[ia], Y[ia + 1], Y[ia + 2], Y[ig], Y[ig + 1], Y[ig + 2]
+            w1x, w1y, w1z, w2x, w2y, w2z, w3x, w3y, w3z = (
+                w1x - bgx, w1y - bgy, w1z - bgz, w2x - bgx, w2y - bgy, w2z - bgz, w3x - bgx, w3y - bgy, w3z - bgz)
+            f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y, f3z = (
+                f1x - bax, f1y - bay, f1z - baz, f2x - bax, f2y - bay, f2z - baz, f3x - bax, f3y - bay, f3z - baz)
+        k0, k1, k2, k3, k4 = K[0], K[1], K[2], K[3], K[4]
+        h2 = 0.5 * tau
+        tm = t0 + h2
+        te = t0 + tau
+        d1 = stage(a, b, g, phi, V, t0, w1x, w1y, w1z, f1x, f1y, f1z) if first is None else first
+        i1 = d1[5]
+        d2 = stage(a + h2 * (d1[0] + k0 * i1), b + h2 * (d1[1] + k1 * i1), g + h2 * (d1[2] + k2 * i1),
+                   phi + h2 * (d1[3] + k3 * i1), V + h2 * (d1[4] + k4 * i1), tm, w2x, w2y, w2z, f2x, f2y, f2z)
+        i2 = d2[5]
+        d3 = stage(a + h2 * (d2[0] + k0 * i2), b + h2 * (d2[1] + k1 * i2), g + h2 * (d2[2] + k2 * i2),
+                   phi + h2 * (d2[3] + k3 * i2), V + h2 * (d2[4] + k4 * i2), tm, w2x, w2y, w2z, f2x, f2y, f2z)
+        i3 = d3[5]
+        d4 = stage(a + tau * (d3[0] + k0 * i3), b + tau * (d3[1] + k1 * i3), g + tau * (d3[2] + k2 * i3),
+                   phi + tau * (d3[3] + k3 * i3), V + tau * (d3[4] + k4 * i3), te, w3x, w3y, w3z, f3x, f3y, f3z)
+        i4 = d4[5]
+        c = tau / 6.0
+        ibar = c * (i1 + 2.0 * (i2 + i3) + i4)
+        Y[0] = a + c * (d1[0] + 2.0 * (d2[0] + d3[0]) + d4[0]) + k0 * ibar
+        Y[1] = b + c * (d1[1] + 2.0 * (d2[1] + d3[1]) + d4[1]) + k1 * ibar
+        Y[2] = g + c * (d1[2] + 2.0 * (d2[2] + d3[2]) + d4[2]) + k2 * ibar
+        Y[3] = phi + c * (d1[3] + 2.0 * (d2[3] + d3[3]) + d4[3]) + k3 * ibar
+        Y[4] = V + c * (d1[4] + 2.0 * (d2[4] + d3[4]) + d4[4]) + k4 * ibar
+        if self.n_states > 5:  # linear extra states: exact transition + gain x integrated innovation
+            if self._clock:
+                i = self._i_clk
+                Y[i] = Y[i] + tau * Y[i + 1] + K[i] * ibar
+                Y[i + 1] = Y[i + 1] + K[i + 1] * ibar
+            if self._biases:
+                imu = self.context.imu
+                fa = math.exp(-tau / imu.accel_bias_tau_s)
+                fg = math.exp(-tau / imu.gyro_bias_tau_s)
+                for j in range(3):
+                    Y[ia + j] = fa * Y[ia + j] + K[ia + j] * ibar
+                    Y[ig + j] = fg * Y[ig + j] + K[ig + j] * ibar
+
+    # ------------------------------------------------------------------ (16)
+    def _epoch_update(self, obs, f_mean, t):
+        """Discrete update (16) with all valid pseudoranges and Dopplers (+ Z_ax)."""
+        valid = np.asarray(obs.valid, dtype=bool)
+        if not valid.any():
+            return None
+        Y = self._Y
+        ns = self.n_states
+        phi, V = Y[3], Y[4]
+        sat_pos = np.asarray(obs.sat_pos_e, dtype=float)[valid]
+        sat_vel = np.asarray(obs.sat_vel_e, dtype=float)[valid]
+        m = len(sat_pos)
+        h_r, h_v, t_e = self.gnss_model(phi, V, sat_pos, sat_vel)
+        h_rc, h_vc, _ = self.gnss_model(complex(phi, _CSTEP), V, sat_pos, sat_vel)
+        d = sat_pos - self._ecef(phi)
+        los = d / h_r[:, None]
+        rows = []
+        resid = []
+        var = []
+        if self._accel_in_update:
+            wmean = [0.0, 0.0, 0.0]  # gyro values do not enter H_a or its Jacobian
+            _, hneg, _, _, sig2, first = self._coefficients(Y, wmean, f_mean, t)
+            rows.append(-hneg)
+            resid.append(first[5])
+            var.append(sig2 / self._dt)
+        H = np.zeros((len(rows) + 2 * m, ns))
+        if rows:
+            H[0] = rows[0]
+        j0 = len(rows)
+        H[j0:j0 + m, 3] = h_rc.imag / _CSTEP
+        H[j0 + m:, 3] = h_vc.imag / _CSTEP
+        H[j0 + m:, 4] = -(los @ t_e)
+        z_r = np.asarray(obs.pseudorange_m, dtype=float)[valid] - h_r
+        z_v = np.asarray(obs.pseudorange_rate_mps, dtype=float)[valid] - h_v
+        if self._clock:
+            i = self._i_clk
+            z_r = z_r - Y[i]
+            z_v = z_v - Y[i + 1]
+            H[j0:j0 + m, i] = 1.0
+            H[j0 + m:, i + 1] = 1.0
+        nu = np.concatenate([np.array(resid), z_r, z_v])
+        r_diag = np.concatenate([np.array(var), np.full(m, self._r_code), np.full(m, self._r_dopp)])
+        P = self._P
+        PHt = P @ H.T
+        S = H @ PHt + np.diag(r_diag)
+        S = 0.5 * (S + S.T)
+        Kt = np.linalg.solve(S, PHt.T)  # K^T = S^-1 H P
+        dx = Kt.T @ nu
+        for j in range(ns):
+            Y[j] += float(dx[j])
+        ikh = np.eye(ns) - Kt.T @ H
+        P = ikh @ P @ ikh.T + (Kt.T * r_diag) @ Kt  # Joseph form
+        self._P = 0.5 * (P + P.T)
+        _check_covariance(self._P)
+        return float(nu @ np.linalg.solve(S, nu)), int(len(nu))
+
+    def _ecef(self, phi) -> np.ndarray:
+        lam, _, _, hh, _ = self.track_functions.scalars(phi)
+        sp, cp = math.sin(phi), math.cos(phi)
+        if self._sphere:
+            re = rz = self._a + hh
+        else:
+            r_e = self._a / math.sqrt(1.0 - self._e2 * sp * sp)
+            re, rz = r_e + hh, r_e * (1.0 - self._e2) + hh
+        return np.array([re * cp * math.cos(lam), re * cp * math.sin(lam), rz * sp])
+
+    # ------------------------------------------------------------------ outputs
+    def outputs(self, Y: np.ndarray, P: np.ndarray, t: np.ndarray):
+        """Navigation solutions (n, 9) and 9 x 9 covariances (n, 9, 9) from states (n, ns)."""
+        Y = np.asarray(Y, dtype=float)
+        t = np.asarray(t, dtype=float)
+        a, b, g, phi, V = Y[:, 0], Y[:, 1], Y[:, 2], Y[:, 3], Y[:, 4]
+        lam, dlam, ddlam, hh, dh, ddh = self.track_functions.arrays(phi)
+        sp, cp = np.sin(phi), np.cos(phi)
+        if self._sphere:
+            rn = re = self._a + hh
+            drn = dre = dh
+        else:
+            w = 1.0 - self._e2 * sp * sp
+            r_e = self._a / np.sqrt(w)
+            r_n = r_e * (1.0 - self._e2) / w
+            rn, re = r_n + hh, r_e + hh
+            dre = r_e * self._e2 * sp * cp / w + dh
+            drn = 3.0 * r_n * self._e2 * sp * cp / w + dh
+        ratio = re / rn
+        k = dlam * cp * ratio
+        kphi = (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
+        m = dh / rn
+        mphi = ddh / rn - dh * drn / rn ** 2
+        velocity_n = np.column_stack([k * V, V, m * V])
+        dmat = euler_krylov_matrix(a, b, g)
+        bmat = euler_krylov_matrix(-phi, lam + self._omega * t, 0.0)
+        mat_nb = bmat @ np.swapaxes(dmat, -1, -2)  # C^T = B D^T
+        heading, pitch, roll = hpr_from_mat_nb(mat_nb)
+        sol = np.column_stack([phi, lam, hh, velocity_n, heading, pitch, roll])
+        n = len(phi)
+        J = np.zeros((n, 9, self.n_states))
+        J[:, 0, 3] = re * cp * dlam
+        J[:, 1, 3] = rn
+        J[:, 2, 3] = dh
+        J[:, 3, 3], J[:, 3, 4] = kphi * V, k
+        J[:, 4, 4] = 1.0
+        J[:, 5, 3], J[:, 5, 4] = mphi * V, m
+        sg, cg, sa, ca = np.sin(g), np.cos(g), np.sin(a), np.cos(a)
+        zero = np.zeros_like(a)
+        axes = np.stack([np.stack([cg, -sg, zero], -1), np.stack([sg * ca, cg * ca, -sa], -1),
+                         np.stack([zero, zero, zero + 1.0], -1)], axis=-1)  # columns a_alpha, a_beta, a_gamma
+        J[:, 6:9, 0:3] = mat_nb @ axes
+        J[:, 6, 3] = 1.0  # -theta_n: rotation of the ENU frame with phi
+        J[:, 7, 3] = -dlam * cp
+        J[:, 8, 3] = -dlam * sp
+        cov = J @ P @ np.swapaxes(J, -1, -2)
+        return sol, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+    # ------------------------------------------------------------------ interface
+    def _require(self):
+        if not self._ready:
+            raise RuntimeError("call PaperEkf.reset(context, prior) first")
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step: (14) over the step, (16) if an epoch ends it."""
+        self._require()
+        inp = self._prepare(measurement.dtheta_r[None], measurement.dv_r[None])
+        epochs = {} if measurement.gnss is None else {0: measurement.gnss}
+        t = np.array([measurement.t])
+        y, p, nis, dof = self._run(t, inp, measurement.dtheta_r[None], measurement.dv_r[None], epochs,
+                                   np.array([measurement.step]))
+        sol, cov = self.outputs(y, p, t)
+        extra = {"state": y[0].copy(), "state_cov": p[0].copy(), "diverged": self._diverged}
+        extra.update(self._extra_states(y[0]))
+        s = sol[0]
+        return Estimate(t=float(measurement.t), lat=float(s[0]), lon=float(s[1]), h=float(s[2]),
+                        velocity_n=s[3:6].copy(), heading=float(s[6]), pitch=float(s[7]), roll=float(s[8]),
+                        covariance=cov[0], nis=None if math.isnan(nis[0]) else float(nis[0]),
+                        nis_dof=None if dof[0] == 0 else int(dof[0]), extra=extra)
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        """Many steps at once; the same numbers as repeated :meth:`step`."""
+        self._require()
+        inp = self._prepare(batch.dtheta_r, batch.dv_r)
+        epochs = {int(j): obs for j, obs in batch.gnss}
+        t = np.asarray(batch.t, dtype=float)
+        y, p, nis, dof = self._run(t, inp, batch.dtheta_r, batch.dv_r, epochs, np.asarray(batch.step))
+        sol, cov = self.outputs(y, p, t)
+        self.last_states, self.last_state_cov = y, p
+        return EstimateBatch(solution=sol, covariance=cov, nis=nis, nis_dof=dof)
+
+    def _extra_states(self, y) -> dict:
+        out = {}
+        if self._clock:
+            out["clock_bias_m"] = float(y[self._i_clk])
+            out["clock_drift_mps"] = float(y[self._i_clk + 1])
+        if self._biases:
+            out["accel_bias"] = y[self._i_ba:self._i_ba + 3].copy()
+            out["gyro_bias"] = y[self._i_bg:self._i_bg + 3].copy()
+        return out
+
+    @property
+    def diverged(self) -> bool:
+        return self._diverged
+
+
+# ============================================================================ numerics
+def _cross(u, v):
+    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+
+
+def _riccati_rk4(P, A, hneg, Q, s, sig2, tau):
+    """RK4 of R' = A R + R A^T + Q - (R h + S)(R h + S)^T / sigma^2 (14), frozen coefficients.
+
+    Written with few numpy calls (each costs microseconds on 5 x 5 matrices).
+    """
+    h = -hneg
+    inv = 1.0 / sig2
+    multiply_outer = np.multiply.outer
+
+    def rhs(R):
+        AR = A @ R
+        AR += AR.T
+        AR += Q
+        M = R @ h
+        M += s
+        AR -= multiply_outer(M, M * inv)
+        return AR
+
+    k1 = rhs(P)
+    k2 = rhs(P + (0.5 * tau) * k1)
+    k3 = rhs(P + (0.5 * tau) * k2)
+    k4 = rhs(P + tau * k3)
+    k2 += k3
+    k2 *= 2.0
+    k2 += k1
+    k2 += k4
+    k2 *= tau / 6.0
+    k2 += P
+    k2 += k2.T
+    k2 *= 0.5
+    return k2
+
+
+def _check_covariance(P) -> None:
+    """Raise FloatingPointError when P is non-finite or has a negative diagonal."""
+    d = P.diagonal()
+    if not (math.isfinite(float(P.sum())) and float(d.min()) >= 0.0):
+        raise FloatingPointError("non-finite or indefinite covariance")
+
+
+# ============================================================================ printed forms
+def printed_state_rhs(Y, omega_b, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float) -> np.ndarray:
+    """Appendix 2's F(Y, t) transcribed literally (printed Phi(beta, gamma), printed +centrifugal).
+
+    For checks only (spherical Earth). Y = [alpha, beta, gamma, phi, V_Y].
+    """
+    a, b, g, phi, V = (float(x) for x in Y)
+    sg, cg, cb, tb = math.sin(g), math.cos(g), math.cos(b), math.tan(b)
+    phi_printed = np.array([[sg / cb, cg / cb, 0.0], [cg, -sg, 0.0], [sg * tb, cg * tb, 1.0]])
+    lam, dlam, _, hh, dh = track_functions.scalars(phi)
+    C = euler_krylov_matrix(a, b, g) @ euler_krylov_matrix(-phi, lam + omega_earth * t, 0.0).T
+    rh = r + hh
+    vdot = (C.T[1] @ f_b - (2 * omega_earth + dlam * V / rh) * dlam * V * math.cos(phi) * math.sin(phi)
+            - dh * V ** 2 / rh ** 2 + omega_earth ** 2 * rh * math.cos(phi) * math.sin(phi))
+    return np.concatenate([phi_printed @ omega_b, [V / rh, vdot]])
+
+
+def printed_observer_13(Y, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float,
+                        centrifugal_sign: float = 1.0) -> tuple[float, np.ndarray]:
+    """(13) transcribed literally: H_a(Y, t) and H_w (1 x 3), with the c_ij of C = D B^T.
+
+    ``centrifugal_sign=+1`` as printed; -1 for the physical sign. Spherical Earth. For checks.
+    """
+    a, b, g, phi, V = (float(x) for x in Y)
+    lam, dlam, ddlam, hh, dh = track_functions.scalars(phi)
+    C = euler_krylov_matrix(a, b, g) @ euler_krylov_matrix(-phi, lam + omega_earth * t, 0.0).T
+    c = lambda i, j: C[i - 1, j - 1]  # noqa: E731 - c_ij as printed (1-based)
+    rh = r + hh
+    sp, cp = math.sin(phi), math.cos(phi)
+    k = dlam * cp
+    zay, zaz = f_b[1], f_b[2]
+    den = c(1, 1) - k * c(1, 2)
+    bracket = (-(2 * omega_earth + dlam * V / rh) * dlam * V * cp * sp - dh * V ** 2 / rh ** 2
+               + centrifugal_sign * omega_earth ** 2 * rh * cp * sp)
+    d_k = ddlam * cp - dlam * sp  # d/dphi (lambda' cos phi)
+    h_a = ((k * c(2, 2) - c(2, 1)) * zay + (k * c(3, 2) - c(3, 1)) * zaz + k * bracket + d_k * V ** 2 / rh
+           - (2 * omega_earth + dlam * V / rh) * V * (sp - dh / rh * cp)) / den
+    h_w = (C.T[0] - k * C.T[1]) / den
+    return float(h_a), h_w
