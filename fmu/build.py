@@ -1,0 +1,311 @@
+"""Build navsim's plant and estimator FMUs (FMI 2.0 and FMI 3.0 co-simulation).
+
+:func:`build_fmu` writes the archive itself instead of calling pythonfmu's builders, so
+that the ``modelDescription.xml`` is generated complete and valid from the shared table
+(:mod:`navsim.fmu.variables`): units in ``UnitDefinitions``, start values, and a
+``ModelStructure`` with every output in ``Outputs`` and every output and calculated
+parameter whose ``initial`` is ``calculated`` in ``InitialUnknowns`` (pythonfmu 0.7
+leaves ``InitialUnknowns`` out, which fails ``fmpy validate``; pythonfmu3 0.3.4 also
+writes ``canHandleVariableCommunicationStepSize`` from a stale loop variable).
+
+Archive layout::
+
+    modelDescription.xml
+    binaries/<platform>/<modelIdentifier>.<so|dll>   pythonfmu's / pythonfmu3's FMI shim
+    resources/slavemodule.txt                         the slave module's name
+    resources/<module>.py                              one class: navsim.fmu.fmi2/fmi3 slave
+    resources/pythonfmu[3]/*.py                        the shim's Python side
+    resources/navsim_scenario.toml                     the embedded scenario
+    resources/navsim_fmu.json                          kind, FMI version, build version, ...
+    resources/<track or almanac files>                 files the scenario refers to
+    documentation/index.html                           what a host needs (HOST_REQUIREMENTS)
+
+What a host needs: see :data:`HOST_REQUIREMENTS`.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import shutil
+import uuid
+import zipfile
+from pathlib import Path
+from xml.dom import minidom
+from xml.etree.ElementTree import Element, SubElement, tostring
+
+from navsim.errors import ConfigError, DependencyNotInstalled
+
+from .runtime import META_FILE, SCENARIO_FILE, plant_defaults
+from .variables import UNITS, Dimensions, Var, estimator_variables, plant_variables, scalar_names
+
+__all__ = ["build_fmu", "model_description_xml", "HOST_REQUIREMENTS", "MODEL_IDENTIFIERS"]
+
+MODEL_IDENTIFIERS = {"plant": "NavsimPlant", "estimator": "NavsimEstimator"}
+
+HOST_REQUIREMENTS = """\
+What a host needs to run a navsim FMU
+=====================================
+* A CPython 3.10+ with navsim (distribution navsim-track) and its dependencies (numpy,
+  scipy) importable: the FMU's shared library (pythonfmu's / pythonfmu3's shim) runs
+  navsim's Python code in that interpreter. pythonfmu itself is embedded in the FMU.
+* Python hosts (fmpy, libcosimpy, a Python master loop): nothing else; the FMU runs in
+  the host's own interpreter, so install navsim in the host's environment.
+* Non-Python hosts on Linux (OMSimulator, cosim CLI, a C master): the shim does not link
+  libpython, so preload it and point Python at the environment that has navsim, e.g.
+      LD_PRELOAD=/usr/lib/x86_64-linux-gnu/libpython3.11.so.1.0 \\
+      PYTHONHOME=/path/to/venv-base PYTHONPATH=/path/to/venv/lib/python3.11/site-packages host ...
+  (on Windows: put pythonXY.dll's folder on PATH).
+* Binaries are included for linux64/x86_64-linux and win64/x86_64-windows.
+* Communication step: a whole number of simulator ticks (the estimator FMU: exactly one
+  navigation step); any other step is refused with an error status and a log message.
+* The variables navsim.version, navsim.build_version, navsim.config_hash and
+  navsim.scenario (calculated parameters) say what ran: log them.
+"""
+
+
+def _require(kind_module: str, extra: str = "fmu"):
+    import importlib
+
+    try:
+        return importlib.import_module(kind_module)
+    except ImportError:
+        raise DependencyNotInstalled(kind_module, extra) from None
+
+
+# =========================================================================== XML
+def _fmt(var: Var, value) -> str:
+    if var.type == "real":
+        return repr(float(value))
+    if var.type == "int":
+        return str(int(value))
+    if var.type == "bool":
+        return "true" if value else "false"
+    return str(value)
+
+
+def _initial(var: Var) -> str | None:
+    if var.causality == "parameter":
+        return "exact"
+    if var.causality in ("output", "calculatedParameter"):
+        return "calculated"
+    return None  # inputs: no initial attribute
+
+
+def _units_used(table: list[Var]) -> list[str]:
+    return sorted({v.unit for v in table if v.unit})
+
+
+def _unit_definitions(root: Element, table: list[Var]) -> None:
+    units = _units_used(table)
+    if not units:
+        return
+    defs = SubElement(root, "UnitDefinitions")
+    for name in units:
+        unit = SubElement(defs, "Unit", name=name)
+        SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNITS[name].items()})
+
+
+def _log_categories(root: Element, fmi: int) -> None:
+    cats = SubElement(root, "LogCategories")
+    prefix = f"fmi{fmi}"
+    for name, text in (("logStatusWarning", "warning"), ("logStatusDiscard", "discard"),
+                       ("logStatusError", "error"), ("logStatusFatal", "fatal"), ("logAll", "all")):
+        SubElement(cats, "Category", name=name, description=f"Log messages with {prefix} status {text}"
+                   if name != "logAll" else "Log all messages")
+
+
+_FMI2_TYPE = {"real": "Real", "int": "Integer", "bool": "Boolean", "string": "String"}
+_FMI3_TYPE = {"real": "Float64", "int": "Int32", "bool": "Boolean", "string": "String"}
+
+
+def model_description_xml(kind: str, table: list[Var], fmi: int, *, model_name: str, description: str,
+                          version: str, duration_s: float, step_s: float, token: str | None = None) -> bytes:
+    """The ``modelDescription.xml`` of a navsim FMU, generated from its variable table."""
+    token = token or str(uuid.uuid4())
+    identifier = MODEL_IDENTIFIERS[kind]
+    now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    attrs = {"fmiVersion": "2.0" if fmi == 2 else "3.0", "modelName": model_name, "description": description,
+             "generationTool": f"navsim {version}", "generationDateAndTime": now, "version": version,
+             "variableNamingConvention": "structured"}
+    attrs["guid" if fmi == 2 else "instantiationToken"] = "{" + token + "}"
+    root = Element("fmiModelDescription", attrs)
+    cs = {"modelIdentifier": identifier, "needsExecutionTool": "true",
+          "canHandleVariableCommunicationStepSize": "true", "canBeInstantiatedOnlyOncePerProcess": "false"}
+    if fmi == 2:
+        cs.update(canNotUseMemoryManagementFunctions="true", canGetAndSetFMUstate="false",
+                  canSerializeFMUstate="false")
+    else:
+        cs.update(canGetAndSetFMUState="false", canSerializeFMUState="false")
+    SubElement(root, "CoSimulation", cs)
+    _unit_definitions(root, table)
+    _log_categories(root, fmi)
+    SubElement(root, "DefaultExperiment", startTime="0.0", stopTime=repr(float(duration_s)), stepSize=repr(float(step_s)))
+    variables = SubElement(root, "ModelVariables")
+    outputs, initial_unknowns = [], []
+    if fmi == 2:
+        index = 0
+        for var in table:
+            for j, name in enumerate(scalar_names(var)):
+                index += 1
+                a = {"name": name, "valueReference": str(index - 1), "description": var.description,
+                     "causality": var.causality, "variability": var.variability}
+                if _initial(var):
+                    a["initial"] = _initial(var)
+                sv = SubElement(variables, "ScalarVariable", a)
+                t = {}
+                if var.unit and var.type == "real":
+                    t["unit"] = var.unit
+                if var.start is not None:
+                    t["start"] = _fmt(var, var.start)
+                SubElement(sv, _FMI2_TYPE[var.type], t)
+                if var.causality == "output":
+                    outputs.append(index)
+                if _initial(var) == "calculated":
+                    initial_unknowns.append(index)
+        structure = SubElement(root, "ModelStructure")
+        if outputs:
+            node = SubElement(structure, "Outputs")
+            for i in outputs:
+                SubElement(node, "Unknown", index=str(i))
+        if initial_unknowns:
+            node = SubElement(structure, "InitialUnknowns")
+            for i in initial_unknowns:
+                SubElement(node, "Unknown", index=str(i))
+    else:
+        SubElement(variables, "Float64", name="time", valueReference="0", causality="independent",
+                   variability="continuous", unit="s", description="Simulation time")
+        for vr, var in enumerate(table, start=1):
+            a = {"name": var.name, "valueReference": str(vr), "description": var.description,
+                 "causality": var.causality, "variability": var.variability}
+            if _initial(var):
+                a["initial"] = _initial(var)
+            if var.unit and var.type == "real":
+                a["unit"] = var.unit
+            if var.start is not None and var.type != "string":
+                a["start"] = " ".join([_fmt(var, var.start)] * var.size)
+            node = SubElement(variables, _FMI3_TYPE[var.type], a)
+            if var.start is not None and var.type == "string":
+                SubElement(node, "Start", value=str(var.start))
+            for d in var.shape:
+                SubElement(node, "Dimension", start=str(d))
+            if var.causality == "output":
+                outputs.append(vr)
+            if _initial(var) == "calculated":
+                initial_unknowns.append(vr)
+        structure = SubElement(root, "ModelStructure")
+        for vr in outputs:
+            SubElement(structure, "Output", valueReference=str(vr))
+        for vr in initial_unknowns:
+            SubElement(structure, "InitialUnknown", valueReference=str(vr))
+    return minidom.parseString(tostring(root, "utf-8")).toprettyxml(indent="  ", encoding="UTF-8")
+
+
+# =========================================================================== archive
+_SLAVE_SCRIPT = '''"""navsim {kind} FMU (FMI {fmi}) entry point, generated by `navsim fmu build`.
+
+The class is navsim.fmu.fmi{fmi}.{cls}; the import alias gives it the base-class name
+that pythonfmu's loader looks for.
+"""
+from navsim.fmu.fmi{fmi} import {cls} as Fmi{fmi}Slave
+
+
+class {identifier}(Fmi{fmi}Slave):
+    """navsim {kind} (see navsim.fmu.runtime)."""
+'''
+
+
+def _embed_scenario(scenario, resources: dict[str, bytes]):
+    """The scenario with its file references rewritten to files copied into resources/."""
+    data = scenario.to_dict()
+    if scenario.track.file:
+        path = scenario.resolve_path(scenario.track.file)
+        resources[path.name] = path.read_bytes()
+        data["track"]["file"] = path.name
+    if scenario.gnss.constellation.startswith("yuma:"):
+        path = scenario.resolve_path(scenario.gnss.constellation[5:])
+        resources[path.name] = path.read_bytes()
+        data["gnss"]["constellation"] = f"yuma:{path.name}"
+    import tomli_w
+
+    return tomli_w.dumps(data)
+
+
+def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | None = None, *,
+              estimator: str | None = None, estimator_options: str = "") -> Path:
+    """Build a plant or estimator FMU of ``scenario``.
+
+    Parameters
+    ----------
+    scenario : navsim.scenario.Scenario or str
+        The embedded scenario (a bundled name or a path is loaded).
+    what : ``"plant"`` or ``"estimator"``.
+    fmi : 2 (pythonfmu) or 3 (pythonfmu3).
+    output : the ``.fmu`` file (default ``<scenario>-<what>-fmi<fmi>.fmu``).
+    estimator : registered estimator name for the estimator FMU (default ``paper-ekf``
+        when installed, else ``lc-ekf``); the FMU parameter ``estimator.name``.
+    estimator_options : TOML ``key = value`` lines passed to ``navsim.estimators.make``.
+
+    Returns
+    -------
+    Path of the written FMU.
+    """
+    import navsim
+    from navsim import estimators
+    from navsim.scenario import Scenario, load_scenario
+    from navsim.simulator import Simulator
+
+    if what not in MODEL_IDENTIFIERS:
+        raise ConfigError("--what", "'plant' or 'estimator'", what)
+    if fmi not in (2, 3):
+        raise ConfigError("--fmi", "2 or 3", fmi)
+    shim = _require("pythonfmu" if fmi == 2 else "pythonfmu3")
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    sim = Simulator(scenario)
+    dims = Dimensions.of(sim)
+    meta = {"kind": what, "fmi": fmi, "build_version": navsim.__version__, "scenario": scenario.name,
+            "config_hash": scenario.config_hash()}
+    if what == "plant":
+        table = plant_variables(dims, plant_defaults(scenario))
+        text = (f"navsim plant: truth and sensor data (IMU increments and multiple integrals, GNSS pseudorange, "
+                f"Doppler, satellite states) of scenario {scenario.name!r}")
+    else:
+        if estimator is None:
+            estimator = "paper-ekf" if "paper-ekf" in estimators.available() else "lc-ekf"
+        if estimator not in estimators.available():
+            raise ConfigError("--estimator", f"an installed estimator {estimators.available()}", estimator)
+        meta.update(estimator=estimator, estimator_options=estimator_options)
+        table = estimator_variables(dims, {"estimator.name": estimator, "estimator.options": estimator_options})
+        text = f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its uncertainty"
+    text += ". Needs a Python with navsim and numpy (see documentation/index.html)."
+    identifier = MODEL_IDENTIFIERS[what]
+    module = f"navsim_{what}_fmi{fmi}"
+    xml = model_description_xml(what, table, fmi, model_name=identifier, description=text,
+                                version=navsim.__version__, duration_s=scenario.timing.duration_s,
+                                step_s=scenario.timing.nav_period_s)
+    resources: dict[str, bytes] = {}
+    resources[SCENARIO_FILE] = _embed_scenario(scenario, resources).encode()
+    resources[META_FILE] = json.dumps(meta, indent=1).encode()
+    resources["slavemodule.txt"] = module.encode()
+    cls = "PlantSlave" if what == "plant" else "EstimatorSlave"
+    resources[f"{module}.py"] = _SLAVE_SCRIPT.format(kind=what, fmi=fmi, cls=cls, identifier=identifier).encode()
+    shim_dir = Path(shim.__file__).parent
+    package = "pythonfmu" if fmi == 2 else "pythonfmu3"
+    output = Path(output or f"{scenario.name}-{what}-fmi{fmi}.fmu")
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(output.name + ".part")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", xml)
+        for lib in sorted((shim_dir / "resources" / "binaries").rglob("*")):
+            if lib.suffix in (".so", ".dll", ".dylib"):
+                z.write(lib, f"binaries/{lib.parent.name}/{identifier}{lib.suffix}")
+        for name, blob in resources.items():
+            z.writestr(f"resources/{name}", blob)
+        for src in sorted(shim_dir.glob("*.py")):
+            z.write(src, f"resources/{package}/{src.name}")
+        z.writestr("documentation/index.html",
+                   "<html><body><pre>\n" + HOST_REQUIREMENTS.replace("&", "&amp;").replace("<", "&lt;")
+                   + "\n</pre></body></html>\n")
+    shutil.move(tmp, output)
+    return output

@@ -1,0 +1,111 @@
+"""FMI 2.0 co-simulation slaves (pythonfmu) that forward every call to a runtime.
+
+The classes here only translate: value references and types to the
+:class:`~navsim.fmu.runtime.ValueStore`, ``do_step`` to the runtime, errors to FMI
+statuses with a log message. pythonfmu's C layer maps a ``False`` return of ``do_step``
+to ``fmi2Discard`` and any Python exception to ``fmi2Fatal`` (after which the instance
+can only be freed); navsim therefore refuses a bad communication step with
+``fmi2Discard`` and an error-category log message (the instance stays usable: retry with a
+valid step), and a bad parameter value with ``fmi2Fatal`` from
+``fmi2ExitInitializationMode`` and a message naming the parameter, the expectation and
+the value.
+
+Generated FMUs contain a one-line slave script that subclasses :class:`PlantSlave` or
+:class:`EstimatorSlave` under the name pythonfmu's loader looks for.
+"""
+
+from __future__ import annotations
+
+from pythonfmu import Fmi2Slave
+from pythonfmu.enums import Fmi2Status
+
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime
+
+__all__ = ["PlantSlave", "EstimatorSlave"]
+
+_LEVEL = {"info": Fmi2Status.ok, "warning": Fmi2Status.warning, "error": Fmi2Status.error}
+
+
+class _Slave(Fmi2Slave):
+    runtime_class = None
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.rt = self.runtime_class(self.resources, 2, self._log)
+
+    def _log(self, message: str, level: str = "info") -> None:
+        self.log(message, _LEVEL[level])
+
+    def _fail(self, message: str, status=Fmi2Status.error) -> None:
+        self.log(message, status)
+        raise FmuError(message)
+
+    # -- life cycle ------------------------------------------------------------------------
+    def exit_initialization_mode(self):
+        try:
+            self.rt.exit_initialization_mode()
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        try:
+            self.rt.do_step(current_time, step_size)
+        except FmuError as exc:
+            self.log(f"doStep refused: {exc}", Fmi2Status.error)
+            return False
+        except Exception as exc:  # a bug must not take the host down: report, refuse the step
+            self.log(f"doStep failed: {type(exc).__name__}: {exc}", Fmi2Status.error)
+            return False
+        return True
+
+    def terminate(self):
+        self.rt.terminate()
+
+    # -- values ------------------------------------------------------------------------------
+    def _get(self, vrs, type_):
+        try:
+            return self.rt.store.get(vrs, type_)
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def _set(self, vrs, values, type_):
+        try:
+            self.rt.store.set(vrs, values, type_, self.rt.settable())
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def get_real(self, vrs):
+        return self._get(vrs, "real")
+
+    def get_integer(self, vrs):
+        return self._get(vrs, "int")
+
+    def get_boolean(self, vrs):
+        return self._get(vrs, "bool")
+
+    def get_string(self, vrs):
+        return self._get(vrs, "string")
+
+    def set_real(self, vrs, values):
+        self._set(vrs, values, "real")
+
+    def set_integer(self, vrs, values):
+        self._set(vrs, values, "int")
+
+    def set_boolean(self, vrs, values):
+        self._set(vrs, [bool(v) for v in values], "bool")
+
+    def set_string(self, vrs, values):
+        self._set(vrs, values, "string")
+
+
+class PlantSlave(_Slave):
+    """The plant FMU (FMI 2): :class:`~navsim.fmu.runtime.PlantRuntime`."""
+
+    runtime_class = PlantRuntime
+
+
+class EstimatorSlave(_Slave):
+    """The estimator FMU (FMI 2): :class:`~navsim.fmu.runtime.EstimatorRuntime`."""
+
+    runtime_class = EstimatorRuntime

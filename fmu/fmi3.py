@@ -1,0 +1,106 @@
+"""FMI 3.0 co-simulation slaves (pythonfmu3) that forward every call to a runtime.
+
+As :mod:`navsim.fmu.fmi2`, with FMI 3 arrays for the per-channel GNSS signals and the
+3-vectors. ``do_step`` returns ``fmi3Error`` with an error-category log message for a
+bad communication step (the instance stays usable); a bad parameter value raises from
+``fmi3ExitInitializationMode``, which pythonfmu3's C layer reports as ``fmi3Fatal`` with
+the message.
+"""
+
+from __future__ import annotations
+
+from pythonfmu3 import Fmi3Slave
+from pythonfmu3.enums import Fmi3Status
+from pythonfmu3.fmi3slave import Fmi3StepResult
+
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime
+
+__all__ = ["PlantSlave", "EstimatorSlave"]
+
+_LEVEL = {"info": Fmi3Status.ok, "warning": Fmi3Status.warning, "error": Fmi3Status.error}
+
+
+class _Slave(Fmi3Slave):
+    runtime_class = None
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.rt = self.runtime_class(self.resources, 3, self._log)
+        self.time = 0.0
+
+    def _log(self, message: str, level: str = "info") -> None:
+        self.log(message, _LEVEL[level])
+
+    def _fail(self, message: str) -> None:
+        self.log(message, Fmi3Status.error)
+        raise FmuError(message)
+
+    def exit_initialization_mode(self):
+        try:
+            self.rt.exit_initialization_mode()
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def do_step(self, current_time: float, step_size: float):
+        try:
+            self.rt.do_step(current_time, step_size)
+        except FmuError as exc:
+            self.log(f"doStep refused: {exc}", Fmi3Status.error)
+            return Fmi3StepResult(status=Fmi3Status.error)
+        except Exception as exc:  # a bug must not take the host down: report, refuse the step
+            self.log(f"doStep failed: {type(exc).__name__}: {exc}", Fmi3Status.error)
+            return Fmi3StepResult(status=Fmi3Status.error)
+        self.time = current_time + step_size
+        self.rt.store.values[0] = self.time
+        return Fmi3StepResult()
+
+    def terminate(self):
+        self.rt.terminate()
+
+    def _get(self, vrs, type_):
+        try:
+            return self.rt.store.get(vrs, type_)
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def _set(self, vrs, values, type_):
+        try:
+            self.rt.store.set(vrs, values, type_, self.rt.settable())
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def get_float64(self, vrs):
+        return self._get(vrs, "real")
+
+    def get_int32(self, vrs):
+        return self._get(vrs, "int")
+
+    def get_boolean(self, vrs):
+        return self._get(vrs, "bool")
+
+    def get_string(self, vrs):
+        return self._get(vrs, "string")
+
+    def set_float64(self, vrs, values):
+        self._set(vrs, values, "real")
+
+    def set_int32(self, vrs, values):
+        self._set(vrs, values, "int")
+
+    def set_boolean(self, vrs, values):
+        self._set(vrs, [bool(v) for v in values], "bool")
+
+    def set_string(self, vrs, values):
+        self._set(vrs, values, "string")
+
+
+class PlantSlave(_Slave):
+    """The plant FMU (FMI 3): :class:`~navsim.fmu.runtime.PlantRuntime`."""
+
+    runtime_class = PlantRuntime
+
+
+class EstimatorSlave(_Slave):
+    """The estimator FMU (FMI 3): :class:`~navsim.fmu.runtime.EstimatorRuntime`."""
+
+    runtime_class = EstimatorRuntime

@@ -1,0 +1,575 @@
+"""What runs inside navsim's FMUs: a translation of FMI calls into the core's calls.
+
+This module imports neither pythonfmu nor fmpy: the FMI 2 and FMI 3 slave classes
+(:mod:`navsim.fmu.fmi2`, :mod:`navsim.fmu.fmi3`) are thin shells that forward every FMI
+call to a :class:`PlantRuntime` or :class:`EstimatorRuntime`. The runtimes own a
+:class:`ValueStore` (the FMU's variables by value reference, laid out from the shared
+table :mod:`navsim.fmu.variables`) and a core :class:`~navsim.simulator.Simulator` or
+estimator. No physics lives here.
+
+Plant time base
+    The FMU's clock counts simulator ticks. ``do_step(t, h)`` requires ``t`` to be the
+    FMU's current time and ``h`` a whole number (>= 1) of ticks (relative tolerance
+    1e-9); otherwise it refuses the step with a logged message and an error status. The
+    navigation steps whose end falls in ``(t, t + h]`` are served (``Simulator.step``,
+    the same numbers as any chunking); the ``imu.dtheta_r*``/``imu.dv_r*`` outputs are
+    the multiple-integral increments over those steps (composed exactly with
+    :func:`navsim.sensors.imu.compose_multiple_integrals` when there are several, zero
+    when the step ended inside a navigation step); ``imu.dtheta_sub``/``imu.dv_sub``,
+    truth and ``time.t_s`` are those of the last step served; ``gnss.*`` holds the latest
+    epoch of the interval (``gnss.new_epoch`` says whether there was one). With a
+    communication step of one navigation step every output is exactly the core's value.
+External motion
+    With ``motion.use_inputs`` the scenario's profile becomes ``"external"`` and, at
+    each ``do_step(t, h)``, the inputs ``motion.s_m``, ``motion.speed_mps``,
+    ``motion.accel_mps2`` are the along-track state at ``t + h`` (default; a master
+    that steps the motion source before the plant, Gauss-Seidel), or, with
+    ``motion.inputs_at_step_start``, the state at ``t`` carried to ``t + h`` at constant
+    acceleration. The sample is pushed into the core's
+    :class:`~navsim.motion.ExternalMotion` (quintic Hermite between samples), exactly as
+    :meth:`Simulator.push_motion` does when ``h`` is one navigation step.
+Estimator
+    The estimator FMU needs a communication step of exactly one navigation step. Its
+    inputs carry the plant's names; at the first ``do_step`` it resets the estimator with
+    the ``prior.*`` inputs (the plant's ``prior.*`` outputs) and the prior covariance of
+    the embedded scenario's ``[initial]`` section.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from navsim.errors import ConfigError, NavsimError
+
+from .variables import Dimensions, Var, estimator_variables, plant_variables
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "FmuError",
+    "SCENARIO_FILE",
+    "META_FILE",
+    "ValueStore",
+    "PlantRuntime",
+    "EstimatorRuntime",
+    "plant_defaults",
+    "effective_scenario",
+]
+
+SCENARIO_FILE = "navsim_scenario.toml"
+META_FILE = "navsim_fmu.json"
+REL_TOL = 1e-9
+
+
+class FmuError(NavsimError):
+    """A call into a navsim FMU cannot be honoured (the message goes to the FMI log)."""
+
+
+def _version() -> str:
+    import navsim
+
+    return navsim.__version__
+
+
+# =========================================================================== store
+class ValueStore:
+    """The FMU's variable values by value reference.
+
+    FMI 2 (``fmi=2``): every element of an array :class:`Var` is one scalar variable, so a
+    variable of size n occupies n consecutive value references. FMI 3 (``fmi=3``): value
+    reference 0 is the independent variable ``time``; each :class:`Var` has one value
+    reference and arrays are stored as lists.
+    """
+
+    def __init__(self, table: list[Var], fmi: int):
+        if fmi not in (2, 3):
+            raise ConfigError("fmi", "2 or 3", fmi)
+        self.fmi = fmi
+        self.table = table
+        self.by_name = {v.name: v for v in table}
+        self.first_vr: dict[str, int] = {}
+        self.values: list = []
+        self.types: list[str] = []
+        self.vars: list[Var | None] = []
+        if fmi == 3:
+            self.values.append(0.0)
+            self.types.append("real")
+            self.vars.append(None)
+        for var in table:
+            self.first_vr[var.name] = len(self.values)
+            default = _zero(var.type) if var.start is None else var.start
+            if fmi == 2:
+                for _ in range(var.size):
+                    self.values.append(default)
+                    self.types.append(var.type)
+                    self.vars.append(var)
+            else:
+                self.values.append([default] * var.size if var.shape else default)
+                self.types.append(var.type)
+                self.vars.append(var)
+        self._n = len(self.values)
+
+    def __len__(self) -> int:
+        return self._n
+
+    # -- host side (FMI get/set) ------------------------------------------------------
+    def get(self, vrs, type_: str) -> list:
+        out = []
+        values, types, n = self.values, self.types, self._n
+        for vr in vrs:
+            if not 0 <= vr < n or types[vr] != type_:
+                raise FmuError(f"value reference {vr}: expected a {type_} variable of this FMU")
+            value = values[vr]
+            if type(value) is list:
+                out.extend(value)
+            else:
+                out.append(value)
+        return out
+
+    def set(self, vrs, new_values, type_: str, allowed: tuple[str, ...]) -> None:
+        values, types, n = self.values, self.types, self._n
+        k = 0
+        for vr in vrs:
+            if not 0 <= vr < n or types[vr] != type_:
+                raise FmuError(f"value reference {vr}: expected a {type_} variable of this FMU")
+            var = self.vars[vr]
+            if var is None or var.causality not in allowed:
+                name = "time" if var is None else var.name
+                raise FmuError(f"{name} (value reference {vr}) cannot be set now (causality "
+                               f"{'independent' if var is None else var.causality})")
+            if self.fmi == 3 and var.shape:
+                chunk = list(new_values[k:k + var.size])
+                if len(chunk) != var.size:
+                    raise FmuError(f"{var.name}: expected {var.size} values, got {len(chunk)}")
+                values[vr] = chunk
+                k += var.size
+            else:
+                values[vr] = new_values[k]
+                k += 1
+
+    # -- runtime side ------------------------------------------------------------------
+    def write(self, name: str, value) -> None:
+        """Set an output (scalar, array or nested list) from the runtime."""
+        vr = self.first_vr[name]
+        var = self.by_name[name]
+        if var.shape:
+            flat = np.asarray(value).ravel().tolist()
+            if self.fmi == 2:
+                self.values[vr:vr + var.size] = flat
+            else:
+                self.values[vr] = flat
+        else:
+            self.values[vr] = value.item() if hasattr(value, "item") else value
+
+    def read(self, name: str):
+        """The current value of a variable: a Python scalar or a numpy array of its shape."""
+        vr = self.first_vr[name]
+        var = self.by_name[name]
+        if not var.shape:
+            return self.values[vr]
+        flat = self.values[vr:vr + var.size] if self.fmi == 2 else self.values[vr]
+        return np.asarray(flat, dtype=_NP[var.type]).reshape(var.shape)
+
+
+_NP = {"real": float, "int": np.int64, "bool": bool, "string": object}
+
+
+def _zero(type_: str):
+    return {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+
+
+# =========================================================================== scenario
+def load_embedded(resources: str | Path):
+    """The scenario and build metadata written into an FMU's resources folder."""
+    from navsim.scenario import Scenario
+
+    folder = Path(resources)
+    try:
+        data = tomllib.loads((folder / SCENARIO_FILE).read_text(encoding="utf-8"))
+        meta = json.loads((folder / META_FILE).read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise FmuError(f"the FMU's resources lack {exc.filename}: rebuild it with `navsim fmu build`") from None
+    return Scenario.from_dict(data, source=SCENARIO_FILE, base_dir=str(folder)), meta
+
+
+def plant_defaults(scenario) -> dict:
+    """Start values of the plant FMU's parameters and inputs for ``scenario``."""
+    m = scenario.motion
+    return {
+        "seed": 0,
+        "imu.preset": scenario.imu.preset,
+        "imu.gyro_noise_density": -1.0,
+        "imu.accel_noise_density": -1.0,
+        "gnss.preset": scenario.gnss.preset,
+        "gnss.pseudorange_sigma_m": -1.0,
+        "gnss.doppler_sigma_mps": -1.0,
+        "outages.windows_s": json.dumps([list(w) for w in scenario.outages.windows_s]),
+        "scenario.overrides": "",
+        "motion.use_inputs": m.profile == "external",
+        "motion.inputs_at_step_start": False,
+        "motion.s_m": float(m.start_s_m),
+        "motion.speed_mps": float(m.speed_mps),
+        "motion.accel_mps2": 0.0,
+    }
+
+
+def _toml_value(field: str, text: str):
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(field, "a TOML value", f"{text} ({exc})") from None
+
+
+def effective_scenario(base, params: dict):
+    """The scenario after the plant FMU's parameter values (ConfigError on a bad one)."""
+    over: dict = {}
+    if params["imu.preset"] != base.imu.preset:
+        over.setdefault("imu", {})["preset"] = params["imu.preset"]
+    for key, sensor in (("imu.gyro_noise_density", "gyro"), ("imu.accel_noise_density", "accel")):
+        value = float(params[key])
+        if value != -1.0:
+            if not (value >= 0.0 and math.isfinite(value)):
+                raise ConfigError(key, "a noise density >= 0 (or -1 to keep the preset's)", value)
+            over.setdefault("imu", {})[sensor] = {**getattr(base.imu, sensor), "white_noise_density": [value] * 3}
+    if params["gnss.preset"] != base.gnss.preset:
+        over.setdefault("gnss", {})["preset"] = params["gnss.preset"]
+    gnss_over = dict(base.gnss.overrides)
+    for key, name in (("gnss.pseudorange_sigma_m", "pseudorange_sigma_m"), ("gnss.doppler_sigma_mps", "doppler_sigma_mps")):
+        value = float(params[key])
+        if value != -1.0:
+            if not (value >= 0.0 and math.isfinite(value)):
+                raise ConfigError(key, "a sigma >= 0 (or -1 to keep the preset's)", value)
+            gnss_over[name] = value
+    if gnss_over != dict(base.gnss.overrides):
+        over.setdefault("gnss", {})["overrides"] = gnss_over
+    windows = _toml_value("outages.windows_s", params["outages.windows_s"] or "[]")
+    if windows != [list(w) for w in base.outages.windows_s]:
+        over["outages"] = {"windows_s": windows}
+    if params["motion.use_inputs"]:
+        over.setdefault("motion", {})["profile"] = "external"
+    elif base.motion.profile == "external":
+        raise ConfigError("motion.use_inputs", "true for a scenario whose motion profile is 'external'", False)
+    scenario = base.with_overrides(over) if over else base
+    text = params["scenario.overrides"].strip()
+    if text:
+        try:
+            extra = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError("scenario.overrides", "TOML key = value lines", f"{text} ({exc})") from None
+        scenario = scenario.with_overrides(extra)
+    return scenario
+
+
+# =========================================================================== plant
+class _RuntimeBase:
+    kind = ""
+
+    def __init__(self, resources: str, fmi: int, log=None):
+        self.resources = resources
+        self.fmi = fmi
+        self.log = log or (lambda message, level="info": None)
+        self.base_scenario, self.meta = load_embedded(resources)
+        if self.meta.get("kind") != self.kind:
+            raise FmuError(f"resources describe a {self.meta.get('kind')!r} FMU, this slave is a {self.kind!r} one")
+        if self.meta.get("build_version") != _version():
+            self.log(f"navsim {_version()} runs an FMU built with navsim {self.meta.get('build_version')}",
+                     "warning")
+        self.initialised = False
+        self.terminated = False
+
+    def _info(self, scenario) -> None:
+        self.store.write("navsim.version", _version())
+        self.store.write("navsim.build_version", str(self.meta.get("build_version", "")))
+        self.store.write("navsim.config_hash", scenario.config_hash())
+        self.store.write("navsim.scenario", scenario.name)
+
+    def params(self) -> dict:
+        return {v.name: self.store.read(v.name) for v in self.store.table if v.causality == "parameter"}
+
+    # FMI set: parameters only before initialisation is over, inputs at any time
+    def settable(self) -> tuple[str, ...]:
+        return ("input",) if self.initialised else ("parameter", "input")
+
+    def terminate(self) -> None:
+        self.terminated = True
+
+
+class PlantRuntime(_RuntimeBase):
+    """The plant FMU: the core :class:`~navsim.simulator.Simulator` behind FMI calls."""
+
+    kind = "plant"
+
+    def __init__(self, resources: str, fmi: int, log=None):
+        from navsim.simulator import Simulator
+
+        super().__init__(resources, fmi, log)
+        self.sim = Simulator(self.base_scenario)
+        self.dims = Dimensions.of(self.sim)
+        self.store = ValueStore(plant_variables(self.dims, plant_defaults(self.base_scenario)), fmi)
+        self._info(self.base_scenario)
+
+    # -- initialisation ---------------------------------------------------------------
+    def exit_initialization_mode(self) -> None:
+        from navsim.simulator import Simulator
+
+        params = self.params()
+        try:
+            seed = int(params["seed"])
+            if seed < 0:
+                raise ConfigError("seed", "an integer >= 0", seed)
+            scenario = effective_scenario(self.base_scenario, params)
+            sim = self.sim if scenario == self.base_scenario else Simulator(scenario)
+        except NavsimError as exc:
+            raise FmuError(f"bad parameter value: {exc}") from None
+        dims = Dimensions.of(sim)
+        if dims != self.dims:
+            raise FmuError(f"bad parameter value: the parameters change the FMU's dimensions from {self.dims} "
+                           f"to {dims}; build another FMU for that scenario")
+        self.sim, self.scenario, self.seed = sim, scenario, seed
+        self.timing = scenario.timing
+        self.external = scenario.motion.profile == "external"
+        self.inputs_at_start = bool(params["motion.inputs_at_step_start"])
+        self.nav_ticks = self.timing.nav_ticks
+        self.end_tick = self.timing.steps * self.nav_ticks
+        self.tick = 0
+        start = sim.reset(seed)
+        self._info(scenario)
+        self.store.write("gnss.prn", np.asarray(sim.constellation.prn))
+        p = start.prior
+        for name, value in (("lat_rad", p.lat), ("lon_rad", p.lon), ("h_m", p.h), ("velocity_n", p.velocity_n),
+                            ("heading_rad", p.heading), ("pitch_rad", p.pitch), ("roll_rad", p.roll)):
+            self.store.write(f"prior.{name}", value)
+        self._write_truth(start.truth, 0)
+        self.initialised = True
+        self.log(f"navsim {_version()} plant: scenario {scenario.name!r} (config {scenario.config_hash()}), "
+                 f"seed {seed}, tick {self.timing.tick_s} s, navigation step {self.timing.nav_period_s} s")
+
+    # -- stepping -----------------------------------------------------------------------
+    def check_step(self, t: float, h: float) -> int:
+        """The number of ticks of a communication step, or FmuError with the reason."""
+        if not self.initialised:
+            raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
+        if self.terminated:
+            raise FmuError("doStep after terminate: reset or instantiate the FMU again")
+        tick_s = self.timing.tick_s
+        now = self.tick * tick_s
+        if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
+            raise FmuError(f"communication point t = {t!r} s does not match the FMU's time {now!r} s "
+                           "(steps must follow each other without gaps)")
+        ratio = h / tick_s if math.isfinite(h) else math.nan
+        n = round(ratio) if math.isfinite(ratio) else 0
+        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
+            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
+                           f"(tick = {tick_s!r} s; e.g. the navigation step {self.timing.nav_period_s!r} s)")
+        if self.tick + n > self.end_tick:
+            raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
+                           f"({self.timing.duration_s!r} s)")
+        return n
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance one communication step (FmuError: refused, state unchanged)."""
+        n = self.check_step(t, h)
+        new_tick = self.tick + n
+        k = new_tick // self.nav_ticks - self.tick // self.nav_ticks
+        if self.external:
+            self._push_motion(new_tick, h)
+        served = [self.sim.step() for _ in range(k)]
+        self.tick = new_tick
+        self.store.write("time.steps_in_interval", k)
+        if k:
+            self._write_steps(served)
+        else:
+            self._zero_increments()
+            self.store.write("gnss.new_epoch", False)
+
+    def _push_motion(self, new_tick: int, h: float) -> None:
+        s = float(self.store.read("motion.s_m"))
+        v = float(self.store.read("motion.speed_mps"))
+        a = float(self.store.read("motion.accel_mps2"))
+        if self.inputs_at_start:  # the state at t carried to t + h at constant acceleration
+            s, v = s + v * h + 0.5 * a * h * h, v + a * h
+        length = self.sim.track.length
+        if not (0.0 <= s <= length and math.isfinite(v) and math.isfinite(a)):
+            raise FmuError(f"motion inputs: expected an arc length in [0, {length:.1f}] m and finite speed and "
+                           f"acceleration, got s = {s!r} m, speed = {v!r} m/s, accel = {a!r} m/s2")
+        if new_tick % self.nav_ticks == 0:  # the time Simulator.push_motion uses for a step end
+            t_push = (new_tick // self.nav_ticks) * self.timing.nav_period_s
+        else:
+            t_push = new_tick * self.timing.tick_s
+        self.sim.profile.push(t_push, s, v, a)
+
+    def _zero_increments(self) -> None:
+        for r in range(1, self.dims.orders + 1):
+            self.store.write(f"imu.dtheta_r{r}", np.zeros(3))
+            self.store.write(f"imu.dv_r{r}", np.zeros(3))
+
+    def _write_steps(self, served) -> None:
+        from navsim.sensors.imu import compose_multiple_integrals
+
+        chunk, i = served[-1]
+        imu = chunk.imu
+        if len(served) == 1:
+            dtheta, dv = imu.dtheta_r[i], imu.dv_r[i]
+        else:  # exact composition of several navigation steps (seed 000 eq. 1.14)
+            dt = self.timing.nav_period_s
+            dtheta = compose_multiple_integrals(np.stack([c.imu.dtheta_r[j] for c, j in served])[None], dt)[0]
+            dv = compose_multiple_integrals(np.stack([c.imu.dv_r[j] for c, j in served])[None], dt)[0]
+        for r in range(1, self.dims.orders + 1):
+            self.store.write(f"imu.dtheta_r{r}", dtheta[r - 1])
+            self.store.write(f"imu.dv_r{r}", dv[r - 1])
+        self.store.write("imu.dtheta_sub", imu.dtheta_sample[i, :, 0])
+        self.store.write("imu.dv_sub", imu.dv_sample[i, :, 0])
+        self._write_truth(chunk.truth, i)
+        self.store.write("time.t_s", float(chunk.t[i]))
+        self.store.write("time.step", chunk.step0 + i + 1)
+        epoch = None
+        for c, j in served:
+            if c.gnss is not None and len(c.gnss_step):
+                hit = np.flatnonzero(c.gnss_step == j)
+                if hit.size:
+                    epoch = (c, int(hit[0]))
+        self.store.write("gnss.new_epoch", epoch is not None)
+        if epoch is not None:
+            c, e = epoch
+            g = c.gnss
+            self.store.write("gnss.t_s", float(g.t[e]))
+            self.store.write("gnss.receiver_outage", bool(c.receiver_outage[e]))
+            self.store.write("gnss.n_valid", int(g.valid[e].sum()))
+            self.store.write("gnss.valid", g.valid[e])
+            self.store.write("gnss.pseudorange_m", g.pseudorange_m[e])
+            self.store.write("gnss.pseudorange_rate_mps", g.pseudorange_rate_mps[e])
+            self.store.write("gnss.sat_pos_e", g.sat_pos_e[e])
+            self.store.write("gnss.sat_vel_e", g.sat_vel_e[e])
+
+    def _write_truth(self, truth, i: int) -> None:
+        w = self.store.write
+        w("truth.s_m", float(truth.s[i]))
+        w("truth.speed_mps", float(truth.speed[i]))
+        w("truth.accel_mps2", float(truth.accel_along[i]))
+        w("truth.lat_rad", float(truth.lat[i]))
+        w("truth.lon_rad", float(truth.lon[i]))
+        w("truth.h_m", float(truth.h[i]))
+        w("truth.velocity_n", truth.velocity_n[i])
+        w("truth.heading_rad", float(truth.heading[i]))
+        w("truth.pitch_rad", float(truth.pitch[i]))
+        w("truth.roll_rad", float(truth.roll[i]))
+        w("truth.position_e", truth.position_e[i])
+
+
+# =========================================================================== estimator
+class EstimatorRuntime(_RuntimeBase):
+    """The estimator FMU: a registered estimator behind FMI calls (never sees truth)."""
+
+    kind = "estimator"
+
+    def __init__(self, resources: str, fmi: int, log=None):
+        from navsim.simulator import Simulator
+
+        super().__init__(resources, fmi, log)
+        # The simulator object only supplies the map and the nominal sensor specification
+        # (navsim.episode.make_context) and the prior covariance of the [initial] section.
+        self.sim = Simulator(self.base_scenario)
+        self.dims = Dimensions.of(self.sim)
+        defaults = {"estimator.name": self.meta.get("estimator", ""),
+                    "estimator.options": self.meta.get("estimator_options", "")}
+        self.store = ValueStore(estimator_variables(self.dims, defaults), fmi)
+        self._info(self.base_scenario)
+
+    def exit_initialization_mode(self) -> None:
+        from navsim import estimators
+        from navsim.episode import make_context
+
+        params = self.params()
+        try:
+            options = tomllib.loads(params["estimator.options"]) if params["estimator.options"].strip() else {}
+        except tomllib.TOMLDecodeError as exc:
+            raise FmuError(f"bad parameter value: estimator.options: expected TOML key = value pairs, got "
+                           f"{params['estimator.options']!r} ({exc})") from None
+        try:
+            self.estimator = estimators.make(params["estimator.name"], **options)
+        except NavsimError as exc:
+            raise FmuError(f"bad parameter value: {exc}") from None
+        self.context = make_context(self.sim)
+        self.prior_covariance = self.sim.reset(0).prior.covariance  # depends on [initial] only
+        self.timing = self.base_scenario.timing
+        self.prn = np.asarray(self.sim.constellation.prn)
+        self.step_index = 0
+        self.started = False
+        self.initialised = True
+        self.log(f"navsim {_version()} estimator {params['estimator.name']!r} on scenario "
+                 f"{self.base_scenario.name!r} (config {self.base_scenario.config_hash()})")
+
+    def check_step(self, t: float, h: float) -> None:
+        if not self.initialised:
+            raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
+        if self.terminated:
+            raise FmuError("doStep after terminate: reset or instantiate the FMU again")
+        dt = self.timing.nav_period_s
+        now = self.step_index * dt
+        if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
+            raise FmuError(f"communication point t = {t!r} s does not match the estimator's time {now!r} s")
+        if not (math.isfinite(h) and abs(h - dt) <= REL_TOL * dt):
+            ticks = h / self.timing.tick_s if math.isfinite(h) else math.nan
+            what = ("a whole number of ticks but not one navigation step" if math.isfinite(ticks)
+                    and abs(ticks - round(ticks)) <= REL_TOL * max(1.0, ticks) and round(ticks) >= 1
+                    else "not a whole number of simulator ticks")
+            raise FmuError(f"communication step h = {h!r} s is {what}: the estimator FMU steps exactly one "
+                           f"navigation step, h = {dt!r} s")
+        if self.step_index >= self.timing.steps:
+            raise FmuError(f"the episode is over ({self.timing.duration_s!r} s)")
+
+    def do_step(self, t: float, h: float) -> None:
+        from navsim.estimators.base import GnssObservation, Measurement
+        from navsim.simulator import Prior
+
+        self.check_step(t, h)
+        read = self.store.read
+        if not self.started:
+            prior = Prior(t=0.0, lat=float(read("prior.lat_rad")), lon=float(read("prior.lon_rad")),
+                          h=float(read("prior.h_m")), velocity_n=read("prior.velocity_n"),
+                          heading=float(read("prior.heading_rad")), pitch=float(read("prior.pitch_rad")),
+                          roll=float(read("prior.roll_rad")), covariance=self.prior_covariance.copy())
+            self.estimator.reset(self.context, prior)
+            self.started = True
+        orders = self.dims.orders
+        gnss = None
+        if read("gnss.new_epoch"):
+            gnss = GnssObservation(
+                t=float(read("gnss.t_s")), prn=self.prn, sat_pos_e=read("gnss.sat_pos_e"),
+                sat_vel_e=read("gnss.sat_vel_e"), pseudorange_m=read("gnss.pseudorange_m"),
+                pseudorange_rate_mps=read("gnss.pseudorange_rate_mps"), valid=read("gnss.valid"))
+        dt = self.timing.nav_period_s
+        k = self.step_index
+        meas = Measurement(
+            step=k, t=(k + 1) * dt, dt=dt,
+            dtheta_r=np.stack([read(f"imu.dtheta_r{r}") for r in range(1, orders + 1)]),
+            dv_r=np.stack([read(f"imu.dv_r{r}") for r in range(1, orders + 1)]),
+            dtheta_sub=read("imu.dtheta_sub"), dv_sub=read("imu.dv_sub"), gnss=gnss)
+        est = self.estimator.step(meas)
+        self.step_index += 1
+        w = self.store.write
+        w("time.t_s", meas.t)
+        w("time.step", self.step_index)
+        w("nav.lat_rad", float(est.lat))
+        w("nav.lon_rad", float(est.lon))
+        w("nav.h_m", float(est.h))
+        w("nav.velocity_n", np.asarray(est.velocity_n, dtype=float))
+        w("nav.heading_rad", float(est.heading))
+        w("nav.pitch_rad", float(est.pitch))
+        w("nav.roll_rad", float(est.roll))
+        cov = np.full((9, 9), np.nan) if est.covariance is None else np.asarray(est.covariance, dtype=float)
+        sigma = np.sqrt(np.abs(np.diag(cov)))
+        w("nav.sigma_position_n", sigma[0:3])
+        w("nav.sigma_velocity_n", sigma[3:6])
+        w("nav.sigma_attitude_n", sigma[6:9])
+        w("nav.covariance", cov)
+        w("nav.nis", math.nan if est.nis is None else float(est.nis))
+        w("nav.nis_dof", int(est.nis_dof or 0) if est.nis is not None else 0)

@@ -1,0 +1,390 @@
+"""The one table of navsim's exchanged variables: names, units, descriptions, start values.
+
+The FMU face (model variables of the plant and estimator FMUs) and the Gymnasium face
+(observation and action spaces) describe the same signals. Both read them from here, so
+a name, unit or description is written once. This module is plain Python: it imports
+neither gymnasium nor pythonfmu nor numpy.
+
+A :class:`Var` is one signal, scalar or array (``shape``). The FMI 3 FMUs export arrays
+as FMI 3 arrays; the FMI 2 FMUs, which have scalars only, export each element as a
+scalar named with 1-based structured indices, ``gnss.pseudorange_m[3]`` or
+``gnss.sat_pos_e[3,2]`` (:func:`scalar_names`). Gymnasium spaces use ``shape``, ``low``
+and ``high`` (finite bounds; ``None`` = use a generous default).
+
+Groups (``Var.group``)
+    ``parameter``  set before initialisation (seed, sensor grades, noise, outages)
+    ``motion``     inputs: external along-track motion (arc length, speed, acceleration)
+    ``imu``        IMU increments and multiple integrals of the last navigation step(s)
+    ``gnss``       per-channel GNSS arrays with a validity mask and a new-epoch flag
+    ``time``       time stamps and counters
+    ``truth``      the true state (plant only; never an estimator input)
+    ``prior``      the estimator's initial estimate drawn by the simulator
+    ``solution``   the navigation solution and its uncertainty (estimator outputs,
+                   the Gymnasium action)
+    ``info``       navsim version and configuration hash
+
+Use :func:`plant_variables`, :func:`estimator_variables` for the FMU tables and
+:func:`observation_variables`, :func:`action_variables` for the Gymnasium spaces; all
+take the scenario's dimensions (:class:`Dimensions`).
+
+Units are the FMI unit names used in the FMUs' ``UnitDefinitions`` (:data:`UNITS`
+gives their SI base-unit exponents).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = [
+    "Var",
+    "Dimensions",
+    "UNITS",
+    "plant_variables",
+    "estimator_variables",
+    "observation_variables",
+    "action_variables",
+    "scalar_names",
+    "size",
+]
+
+# unit name -> SI base-unit exponents (FMI UnitDefinitions / BaseUnit attributes)
+UNITS: dict[str, dict[str, int]] = {
+    "s": {"s": 1},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "m.s": {"m": 1, "s": 1},
+    "m.s2": {"m": 1, "s": 2},
+    "m2": {"m": 2},
+    "m2/s2": {"m": 2, "s": -2},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "rad.s": {"rad": 1, "s": 1},
+    "rad.s2": {"rad": 1, "s": 2},
+    "rad.s3": {"rad": 1, "s": 3},
+    "N": {"kg": 1, "m": 1, "s": -2},
+}
+
+_DTHETA_UNITS = ("rad", "rad.s", "rad.s2", "rad.s3", "rad.s3", "rad.s3")
+_DV_UNITS = ("m/s", "m", "m.s", "m.s2", "m.s2", "m.s2")
+
+
+@dataclass(frozen=True, slots=True)
+class Var:
+    """One exchanged signal.
+
+    Attributes
+    ----------
+    name : str
+        Structured name (``group.quantity_unit``), unique within a table.
+    type : str
+        ``"real"``, ``"int"``, ``"bool"`` or ``"string"``.
+    causality : str
+        FMI causality: ``"parameter"``, ``"calculatedParameter"``, ``"input"`` or
+        ``"output"``.
+    variability : str
+        FMI variability: ``"fixed"``, ``"tunable"``, ``"discrete"``, ``"continuous"``.
+    unit : str
+        A key of :data:`UNITS`, or ``""`` (dimensionless, counts, flags, text).
+    description : str
+        One line: what it is, its frame, when it changes.
+    start : object
+        Start value (scalar; broadcast over ``shape``) for parameters and inputs,
+        ``None`` for calculated outputs.
+    shape : tuple of int
+        ``()`` for a scalar.
+    group : str
+        See the module docstring.
+    low, high : float or None
+        Finite bounds for Gymnasium spaces (``None``: the face picks a default).
+    """
+
+    name: str
+    type: str
+    causality: str
+    variability: str
+    unit: str
+    description: str
+    start: object = None
+    shape: tuple[int, ...] = ()
+    group: str = ""
+    low: float | None = None
+    high: float | None = None
+
+    def __post_init__(self):
+        if self.type not in ("real", "int", "bool", "string"):
+            raise ValueError(f"Var.type: expected real/int/bool/string, got {self.type!r}")
+        if self.unit and self.unit not in UNITS:
+            raise ValueError(f"Var.unit: expected one of {sorted(UNITS)}, got {self.unit!r}")
+
+    @property
+    def size(self) -> int:
+        """Number of scalar elements."""
+        return size(self.shape)
+
+
+@dataclass(frozen=True, slots=True)
+class Dimensions:
+    """The scenario's dimensions that size the tables.
+
+    channels : GNSS channels (one per satellite of the constellation).
+    orders : multiple-integral orders R of the IMU output.
+    samples_per_step : IMU samples m per navigation step.
+    """
+
+    channels: int
+    orders: int
+    samples_per_step: int
+
+    @classmethod
+    def of(cls, simulator) -> "Dimensions":
+        """The dimensions of a built :class:`navsim.simulator.Simulator`."""
+        return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),
+                   samples_per_step=int(simulator.timing.samples_per_step))
+
+
+def size(shape: tuple[int, ...]) -> int:
+    n = 1
+    for d in shape:
+        n *= d
+    return n
+
+
+def scalar_names(var: Var) -> list[str]:
+    """FMI 2 scalar names of ``var`` in row-major order (1-based structured indices)."""
+    if not var.shape:
+        return [var.name]
+    names = [""]
+    for d in var.shape:
+        names = [f"{p},{i}" if p else str(i) for p in names for i in range(1, d + 1)]
+    return [f"{var.name}[{p}]" for p in names]
+
+
+# --------------------------------------------------------------------------- groups
+def _info_vars() -> list[Var]:
+    return [
+        Var("navsim.version", "string", "calculatedParameter", "fixed", "",
+            "Version of the navsim package that runs this FMU (set at initialisation)", group="info"),
+        Var("navsim.build_version", "string", "calculatedParameter", "fixed", "",
+            "Version of navsim that built this FMU", group="info"),
+        Var("navsim.config_hash", "string", "calculatedParameter", "fixed", "",
+            "SHA-256 (16 hex digits) of the effective scenario after parameter overrides", group="info"),
+        Var("navsim.scenario", "string", "calculatedParameter", "fixed", "",
+            "Name of the embedded scenario", group="info"),
+    ]
+
+
+def _time_vars(kind: str) -> list[Var]:
+    out = [
+        Var("time.t_s", "real", "output", "discrete", "s",
+            "End time of the latest navigation step served (holds between steps)", group="time"),
+        Var("time.step", "int", "output", "discrete", "",
+            "Navigation steps served since the start of the episode", group="time", low=0),
+    ]
+    if kind == "plant":
+        out.append(Var("time.steps_in_interval", "int", "output", "discrete", "",
+                       "Navigation steps completed in the last communication step (0 when the step "
+                       "ended inside a navigation step)", group="time", low=0))
+    return out
+
+
+def _imu_vars(dims: Dimensions, causality: str) -> list[Var]:
+    var = "continuous" if causality == "input" else "discrete"
+    start = 0.0 if causality == "input" else None
+    out = []
+    for r in range(1, dims.orders + 1):
+        what = "increment" if r == 1 else f"{r}-fold integral increment"
+        out.append(Var(f"imu.dtheta_r{r}", "real", causality, var, _DTHETA_UNITS[r - 1],
+                       f"Gyro {what} of angular rate over the interval, body axes (seed 000 eq. 1.14)",
+                       start, (3,), "imu"))
+    for r in range(1, dims.orders + 1):
+        what = "increment" if r == 1 else f"{r}-fold integral increment"
+        out.append(Var(f"imu.dv_r{r}", "real", causality, var, _DV_UNITS[r - 1],
+                       f"Accelerometer {what} of specific force over the interval, body axes (seed 000 eq. 1.14)",
+                       start, (3,), "imu"))
+    m = dims.samples_per_step
+    out += [
+        Var("imu.dtheta_sub", "real", causality, var, "rad",
+            "First-order gyro increments of the IMU samples of the last navigation step, body axes",
+            start, (m, 3), "imu"),
+        Var("imu.dv_sub", "real", causality, var, "m/s",
+            "First-order accelerometer increments of the IMU samples of the last navigation step, body axes",
+            start, (m, 3), "imu"),
+    ]
+    return out
+
+
+def _gnss_vars(dims: Dimensions, causality: str) -> list[Var]:
+    var = "discrete"
+    inp = causality == "input"
+    n = dims.channels
+
+    def s(x):
+        return x if inp else None
+
+    return [
+        Var("gnss.new_epoch", "bool", causality, var, "",
+            "True when a GNSS epoch fell in the last interval (the gnss.* arrays hold it)", s(False), (), "gnss"),
+        Var("gnss.t_s", "real", causality, var, "s", "Time of the latest GNSS epoch", s(0.0), (), "gnss"),
+        Var("gnss.receiver_outage", "bool", causality, var, "",
+            "True when the whole receiver was in an outage at the latest epoch", s(False), (), "gnss"),
+        Var("gnss.n_valid", "int", causality, var, "", "Valid channels at the latest epoch", s(0), (), "gnss",
+            low=0, high=n),
+        Var("gnss.prn", "int", causality, var, "", "Satellite number of each channel", s(0), (n,), "gnss",
+            low=0, high=255),
+        Var("gnss.valid", "bool", causality, var, "",
+            "Channel tracked at the latest epoch (above the mask, not in an outage)", s(False), (n,), "gnss"),
+        Var("gnss.pseudorange_m", "real", causality, var, "m",
+            "Pseudorange of each channel (0 where not valid)", s(0.0), (n,), "gnss", low=0.0, high=1e8),
+        Var("gnss.pseudorange_rate_mps", "real", causality, var, "m/s",
+            "Pseudorange rate (Doppler) of each channel, seed 003 eq. (3)", s(0.0), (n,), "gnss",
+            low=-1e4, high=1e4),
+        Var("gnss.sat_pos_e", "real", causality, var, "m",
+            "ECEF satellite position of each channel at transmission", s(0.0), (n, 3), "gnss", low=-1e8, high=1e8),
+        Var("gnss.sat_vel_e", "real", causality, var, "m/s",
+            "ECEF satellite velocity of each channel", s(0.0), (n, 3), "gnss", low=-1e4, high=1e4),
+    ]
+
+
+def _truth_vars() -> list[Var]:
+    def v(name, unit, text, shape=()):
+        return Var(f"truth.{name}", "real", "output", "discrete", unit, text, None, shape, "truth")
+
+    return [
+        v("s_m", "m", "True arc length along the track"),
+        v("speed_mps", "m/s", "True speed along the track"),
+        v("accel_mps2", "m/s2", "True acceleration along the track"),
+        v("lat_rad", "rad", "True geodetic latitude"),
+        v("lon_rad", "rad", "True longitude"),
+        v("h_m", "m", "True height above the Earth model"),
+        v("velocity_n", "m/s", "True ground velocity, ENU", (3,)),
+        v("heading_rad", "rad", "True heading, clockwise from north"),
+        v("pitch_rad", "rad", "True pitch, forward axis up"),
+        v("roll_rad", "rad", "True roll, right side down"),
+        v("position_e", "m", "True ECEF position", (3,)),
+    ]
+
+
+def _prior_vars(causality: str) -> list[Var]:
+    inp = causality == "input"
+    var = "discrete"
+
+    def v(name, unit, text, shape=()):
+        return Var(f"prior.{name}", "real", causality, var, unit, text, 0.0 if inp else None, shape, "prior")
+
+    return [
+        v("lat_rad", "rad", "Initial estimate of latitude (truth plus a drawn error; set at initialisation)"),
+        v("lon_rad", "rad", "Initial estimate of longitude"),
+        v("h_m", "m", "Initial estimate of height"),
+        v("velocity_n", "m/s", "Initial estimate of ENU velocity", (3,)),
+        v("heading_rad", "rad", "Initial estimate of heading"),
+        v("pitch_rad", "rad", "Initial estimate of pitch"),
+        v("roll_rad", "rad", "Initial estimate of roll"),
+    ]
+
+
+def _solution_vars(causality: str = "output") -> list[Var]:
+    def v(name, unit, text, shape=(), low=None, high=None):
+        return Var(f"nav.{name}", "real", causality, "discrete", unit, text, None, shape, "solution", low, high)
+
+    return [
+        v("lat_rad", "rad", "Estimated geodetic latitude", low=-1.5707963267948966, high=1.5707963267948966),
+        v("lon_rad", "rad", "Estimated longitude", low=-3.141592653589793, high=3.141592653589793),
+        v("h_m", "m", "Estimated height", low=-1e4, high=1e5),
+        v("velocity_n", "m/s", "Estimated ENU velocity", (3,), -1e3, 1e3),
+        v("heading_rad", "rad", "Estimated heading", low=-7.0, high=7.0),
+        v("pitch_rad", "rad", "Estimated pitch", low=-3.2, high=3.2),
+        v("roll_rad", "rad", "Estimated roll", low=-3.2, high=3.2),
+    ]
+
+
+def _uncertainty_vars() -> list[Var]:
+    def v(name, unit, text, shape=()):
+        return Var(f"nav.{name}", "real", "output", "discrete", unit, text, None, shape, "solution")
+
+    return [
+        v("sigma_position_n", "m", "Standard deviation of the position error, ENU (nan if not estimated)", (3,)),
+        v("sigma_velocity_n", "m/s", "Standard deviation of the velocity error, ENU", (3,)),
+        v("sigma_attitude_n", "rad", "Standard deviation of the attitude error about ENU axes", (3,)),
+        v("covariance", "", "Full 9x9 error covariance, row-major over [dE dN dU dvE dvN dvU psiE psiN psiU] "
+          "(SI units; nan when the estimator gives none)", (9, 9)),
+        v("nis", "", "Normalised innovation squared of an update in the last step (nan: none)"),
+        Var("nav.nis_dof", "int", "output", "discrete", "", "Degrees of freedom of nav.nis (0: no update)",
+            None, (), "solution"),
+    ]
+
+
+def _plant_parameters(defaults: dict) -> list[Var]:
+    def p(name, type_, unit, text, variability="fixed"):
+        return Var(name, type_, "parameter", variability, unit, text, defaults.get(name), (), "parameter")
+
+    return [
+        p("seed", "int", "", "Seed of the episode's random streams (Simulator.reset(seed))"),
+        p("imu.preset", "string", "", "IMU grade: ideal, paper-2012, consumer-mems, tactical, navigation"),
+        p("imu.gyro_noise_density", "real", "", "Gyro white-noise density (angle random walk), rad/sqrt(s); "
+          "-1 keeps the preset's value"),
+        p("imu.accel_noise_density", "real", "", "Accelerometer white-noise density (velocity random walk), "
+          "m/s/sqrt(s); -1 keeps the preset's value"),
+        p("gnss.preset", "string", "", "GNSS error preset: paper-2012, standalone, ideal"),
+        p("gnss.pseudorange_sigma_m", "real", "m", "Pseudorange white-noise sigma; -1 keeps the preset's value"),
+        p("gnss.doppler_sigma_mps", "real", "m/s", "Doppler (pseudorange-rate) noise sigma; -1 keeps the preset's"),
+        p("outages.windows_s", "string", "",
+          "GNSS outage windows as a TOML array of [start, end] pairs in seconds, e.g. [[400.0, 700.0]]"),
+        p("scenario.overrides", "string", "",
+          "Further scenario overrides as TOML (e.g. 'imu.orders = 2'); applied last"),
+        p("motion.use_inputs", "bool", "",
+          "True: the motion.* inputs drive the vehicle (profile 'external'); False: the scenario's profile"),
+        p("motion.inputs_at_step_start", "bool", "",
+          "False: motion.* inputs at doStep(t, h) are the state at t + h (a Gauss-Seidel master stepping the "
+          "motion source first); True: the state at t, extrapolated with constant acceleration to t + h"),
+    ]
+
+
+def _motion_inputs(defaults: dict) -> list[Var]:
+    def v(name, unit, text):
+        return Var(name, "real", "input", "continuous", unit, text, defaults.get(name, 0.0), (), "motion")
+
+    return [
+        v("motion.s_m", "m", "External arc length along the track (used when motion.use_inputs)"),
+        v("motion.speed_mps", "m/s", "External speed along the track, ds/dt"),
+        v("motion.accel_mps2", "m/s2", "External acceleration along the track, d2s/dt2"),
+    ]
+
+
+# --------------------------------------------------------------------------- tables
+def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
+    """The plant FMU's variables, in value-reference order.
+
+    ``defaults`` maps parameter and input names to start values (from the scenario).
+    """
+    defaults = defaults or {}
+    return (_info_vars() + _plant_parameters(defaults) + _motion_inputs(defaults) + _time_vars("plant")
+            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _truth_vars() + _prior_vars("output"))
+
+
+def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
+    """The estimator FMU's variables: the plant's sensor outputs and prior as inputs, the
+    solution and its uncertainty as outputs (same names as the plant's, so connections
+    go by name)."""
+    defaults = defaults or {}
+    params = [
+        Var("estimator.name", "string", "parameter", "fixed", "", "Registered estimator (navsim.estimators.make)",
+            defaults.get("estimator.name", ""), (), "parameter"),
+        Var("estimator.options", "string", "parameter", "fixed", "",
+            "Estimator keyword options as a TOML inline table body, e.g. 'gnss_update = \"pseudorange\"'",
+            defaults.get("estimator.options", ""), (), "parameter"),
+    ]
+    return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input") + _prior_vars("input")
+            + _time_vars("estimator") + _solution_vars() + _uncertainty_vars())
+
+
+def observation_variables(dims: Dimensions) -> list[Var]:
+    """The sensor signals of one navigation step (the Gymnasium observation): IMU and
+    GNSS (never truth), with ``time.t_s``."""
+    return [v for v in plant_variables(dims) if v.group in ("imu", "gnss") or v.name == "time.t_s"]
+
+
+def action_variables() -> list[Var]:
+    """The navigation solution (the Gymnasium action): the 9 values of
+    :meth:`navsim.estimators.base.Estimate.as_action`, in that order."""
+    return _solution_vars()
