@@ -248,12 +248,17 @@ class TrackFunctions:
     """
 
     def __init__(self, track, fit_tolerance_m: float = 0.1):
+        from ..errors import TrackError
         from ..track import PiecewisePolynomialTrack, PolynomialTrack, fit_polynomial_track
 
         self.fit = None
         if not isinstance(track, (PolynomialTrack, PiecewisePolynomialTrack)) or (
                 isinstance(track, PiecewisePolynomialTrack) and track.degree > 3):
-            self.fit = fit_polynomial_track(track, degree=3, max_error_m=fit_tolerance_m)
+            try:
+                self.fit = fit_polynomial_track(track, degree=3, max_error_m=fit_tolerance_m, max_pieces=4096)
+            except TrackError as exc:
+                raise ConfigError("track", "a track that can be written as lambda(phi), h(phi) (seed 003's model; "
+                                  "use an arc-length estimator such as 'along-track' otherwise)", str(exc)) from None
             track = self.fit.track
         self.track = track
         if isinstance(track, PolynomialTrack):

@@ -1,0 +1,448 @@
+"""Tests of the seed-003 track-model filter (navsim.estimators.paper_ekf).
+
+Kinds: the printed formulas transcribed literally against the implementation; the
+observer and state equations against independent truth (the simulator's kinematics);
+Jacobians against central finite differences; the input reconstruction against closed
+forms; step() against step_batch(); NEES / NIS consistency on a scenario whose truth
+matches the filter's model (paper-2012: spherical Earth, white IMU and GNSS noise,
+polynomial track); the printed sign errors' effect; failure as a flag, not a crash.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from navsim.earth import SPHERICAL
+from navsim.episode import make_context, measurement_batch, measurements
+from navsim.errors import ConfigError
+from navsim.estimators import make
+from navsim.estimators.paper_ekf import (
+    PaperEkf,
+    input_polynomial_matrix,
+    paper_state,
+    printed_observer_13,
+    printed_state_rhs,
+)
+from navsim.rotations import euler_krylov_matrix, mat_nb_from_hpr, mat_to_quat, quat_to_rotvec
+from navsim.scenario import load_scenario
+from navsim.simulator import Simulator
+
+RNG = np.random.default_rng(20120124)
+
+
+def _scenario(duration=40.0, outage=(16.0, 28.0), **over):
+    ov = {"timing": {"duration_s": duration}, "outages": {"windows_s": [list(outage)] if outage else []}}
+    ov.update(over)
+    return load_scenario("paper-2012").with_overrides(ov)
+
+
+@pytest.fixture(scope="module")
+def paper_sim():
+    sim = Simulator(_scenario(4.0, None))
+    start = sim.reset(0)
+    return sim, start, make_context(sim)
+
+
+def _filter(paper_sim, **options) -> PaperEkf:
+    sim, start, ctx = paper_sim
+    est = PaperEkf(**options)
+    est.reset(ctx, start.prior)
+    return est
+
+
+def _random_state(est, v=20.0):
+    y = list(est._Y)
+    y[0] += RNG.normal() * 0.01
+    y[1] += RNG.normal() * 0.01
+    y[2] += RNG.normal() * 0.01
+    y[4] = v + RNG.normal()
+    return y
+
+
+# ---------------------------------------------------------------------------- config
+def test_registry_and_config_errors(paper_sim):
+    assert isinstance(make("paper-ekf"), PaperEkf)
+    for bad in ({"mode": "exact"}, {"as_printed": {"gravity"}}, {"input_model": "spline"},
+                {"mode": "extended", "as_printed": True}, {"stiffness_limit": 5.0}, {"cov_step_s": -1.0}):
+        with pytest.raises(ConfigError):
+            PaperEkf(**bad)
+    with pytest.raises(ConfigError, match="cov_step_s"):
+        _filter(paper_sim, cov_step_s=0.03)  # does not divide the 1 s GNSS period
+    assert PaperEkf(as_printed=True).config.as_printed == {"kinematics", "centrifugal"}
+
+
+# ---------------------------------------------------------------------------- inputs
+def test_polynomial_input_reconstruction_is_exact_for_cubics():
+    """c = M^-1 I recovers g(s) = sum c_j s^j from its r-fold integrals (Cauchy's formula)."""
+    dt = 0.01
+    c = RNG.normal(size=4)
+    # r-fold integral over [0, dt] of g(t/dt): dt^r * int_0^1 (1-s)^(r-1)/(r-1)! g(s) ds
+    s, w = np.polynomial.legendre.leggauss(10)
+    s, w = 0.5 * (s + 1.0), 0.5 * w
+    g = np.polynomial.polynomial.polyval(s, c)
+    ints = np.array([dt ** r * np.sum(w * (1 - s) ** (r - 1) / math.factorial(r - 1) * g) for r in range(1, 5)])
+    scaled = ints / dt ** np.arange(1, 5)
+    np.testing.assert_allclose(input_polynomial_matrix(4) @ scaled, c, rtol=1e-10, atol=1e-12)
+    # Simpson on the reconstruction returns the first integral exactly (the RK4 stage weights)
+    vals = [np.polynomial.polynomial.polyval(x, c) for x in (0.0, 0.5, 1.0)]
+    assert abs((vals[0] + 4 * vals[1] + vals[2]) / 6 * dt - ints[0]) < 1e-16
+
+
+# ---------------------------------------------------------------------------- printed forms
+def test_state_equation_equals_appendix_2_as_printed(paper_sim):
+    est = _filter(paper_sim, as_printed=True)
+    for _ in range(5):
+        y = _random_state(est)
+        w, f, t = RNG.normal(size=3) * 1e-3, np.array([0.1, 0.2, 9.8]) + RNG.normal(size=3), RNG.uniform(0, 1000)
+        ours = est._stage(*y, t, *w, *f)[:5]
+        printed = printed_state_rhs(y, w, f, t, est.track_functions, est._a, est._omega)
+        np.testing.assert_allclose(ours, printed, rtol=1e-13, atol=1e-18)
+
+
+@pytest.mark.parametrize("as_printed,sign", [(True, 1.0), (False, -1.0)])
+def test_observer_equals_equation_13_literally(paper_sim, as_printed, sign):
+    """Z_ax - H_a of the compact derivation equals (13) with c_ij of C = D B^T; H_w = u_b/u_bx."""
+    est = _filter(paper_sim, as_printed="centrifugal" if as_printed else False)
+    for _ in range(5):
+        y = _random_state(est)
+        f, t = np.array([0.1, 0.2, 9.8]) + RNG.normal(size=3), RNG.uniform(0, 1000)
+        innov = est._stage(*y, t, 0.0, 0.0, 0.0, *f)[5]
+        h_a, h_w = printed_observer_13(y, f, t, est.track_functions, est._a, est._omega, centrifugal_sign=sign)
+        assert abs(innov - (f[0] - h_a)) < 1e-12 * np.linalg.norm(f)
+        assert h_w[0] == pytest.approx(1.0)
+        # noise form: Z_ax - H_a(Y, Z_ay + W_ay, Z_az + W_az) = H_w W_a for any W_a
+        noise = RNG.normal(size=3) * 1e-3
+        h_a2, _ = printed_observer_13(y, f + noise, t, est.track_functions, est._a, est._omega, sign)
+        assert (f[0] + noise[0] - h_a2) - (f[0] - h_a) == pytest.approx(h_w @ noise, rel=1e-7, abs=1e-15)
+
+
+def test_state_and_observer_equations_hold_on_true_motion():
+    """(7), (13) with the corrected centrifugal sign vanish on the simulator's exact kinematics.
+
+    Truth (navsim.motion) is built independently from the track geometry with the standard
+    ENU mechanisation; the paper's equations with the printed centrifugal sign leave a
+    residual 2 Omega^2 (r+h) cos(phi) sin(phi) in V_Y' and k times that in the observer.
+    """
+    sim = Simulator(_scenario(10.0, None))
+    sim.reset(0)
+    ctx = make_context(sim)
+    t = np.array([3.0, 6.5])
+    dt = 1e-3
+    tr = sim.truth_at(np.concatenate([t - dt, t, t + dt]))
+    for printed in (False, True):
+        est = PaperEkf(as_printed="centrifugal" if printed else False)
+        est.reset(ctx, sim.reset(0).prior)
+        y = paper_state(tr.lat, tr.lon, tr.velocity_n, tr.heading, tr.pitch, tr.roll, tr.t, SPHERICAL.rate)
+        for j in range(len(t)):
+            i = len(t) + j
+            out = est._stage(*y[i], tr.t[i], *tr.omega_ib_b[i], *tr.specific_force_b[i])
+            # derivative of the true state by central differences
+            ydot = (y[2 * len(t) + j] - y[j]) / (2 * dt)
+            phi, r = y[i, 3], SPHERICAL.a + tr.h[i]
+            cent = 2.0 * SPHERICAL.rate ** 2 * r * math.cos(phi) * math.sin(phi)
+            if printed:
+                assert out[4] - ydot[4] == pytest.approx(cent, rel=1e-3)
+                assert abs(out[5]) > 1e-4
+            else:
+                np.testing.assert_allclose(out[:5], ydot, rtol=1e-5, atol=2e-8)
+                assert abs(out[5]) < 2e-8  # m/s^2: the observer identity holds
+
+
+def test_printed_kinematic_matrix_does_not_integrate_appendix_1(paper_sim):
+    """Angle rates from Phi(alpha, gamma) reproduce dD/dt = -[omega x] D; the printed ones do not."""
+    for printed, ok in ((False, True), (True, False)):
+        est = _filter(paper_sim, as_printed="kinematics" if printed else False)
+        y = _random_state(est)
+        w = RNG.normal(size=3) * 1e-2
+        rates = np.array(est._stage(*y, 0.0, *w, 0.0, 0.0, 9.8)[:3])
+        h = 1e-6
+        d_plus = euler_krylov_matrix(*(np.array(y[:3]) + h * rates))
+        d_minus = euler_krylov_matrix(*(np.array(y[:3]) - h * rates))
+        d = euler_krylov_matrix(*y[:3])
+        skew = -(d_plus - d_minus) / (2 * h) @ d.T
+        omega = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
+        assert np.allclose(omega, w, atol=1e-8) == ok
+
+
+# ---------------------------------------------------------------------------- Jacobians
+def _fd_stage(est, y, t, w, f):
+    eps = np.array([1e-6, 1e-6, 1e-6, 1e-8, 1e-4])
+    cols = []
+    for j in range(5):
+        yp, ym = list(y), list(y)
+        yp[j] += eps[j]
+        ym[j] -= eps[j]
+        cols.append((np.array(est._stage(*yp, t, *w, *f)) - np.array(est._stage(*ym, t, *w, *f))) / (2 * eps[j]))
+    return np.array(cols).T  # (6, 5): F rows and the innovation
+
+
+@pytest.mark.parametrize("options", [{}, {"as_printed": True}])
+def test_state_and_observer_jacobians_against_finite_differences(paper_sim, options):
+    est = _filter(paper_sim, **options)
+    for _ in range(3):
+        y = _random_state(est)
+        w, f, t = RNG.normal(size=3) * 1e-3, np.array([0.3, -0.2, 9.8]) + RNG.normal(size=3) * 0.3, 50.0
+        A, hneg, *_ = est._coefficients(y, w, f, t)
+        fd = _fd_stage(est, y, t, w, f)
+        scale = np.abs(fd).max(axis=1, keepdims=True) + 1e-30
+        np.testing.assert_allclose(A[:5, :5] / scale[:5], fd[:5] / scale[:5], atol=2e-6)
+        np.testing.assert_allclose(hneg[:5] / scale[5], fd[5] / scale[5], atol=2e-6)
+
+
+def test_jacobians_on_wgs84_with_bias_and_clock_states():
+    sc = _scenario(4.0, None, earth="wgs84", imu={"preset": "tactical"}, gnss={"preset": "standalone"})
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    est = PaperEkf(mode="extended")
+    est.reset(make_context(sim), start.prior)
+    assert est.n_states == 13 and not est._sphere
+    y = _random_state(est)
+    y[est._i_ba:est._i_ba + 3] = RNG.normal(size=3) * 1e-2
+    y[est._i_bg:est._i_bg + 3] = RNG.normal(size=3) * 1e-4
+    w, f, t = RNG.normal(size=3) * 1e-3, np.array([0.3, -0.2, 9.8]), 10.0
+    A, hneg, *_ = est._coefficients(y, w, f, t)
+
+    def stage_full(yy):
+        ia, ig = est._i_ba, est._i_bg
+        return np.array(est._stage(*yy[:5], t, *(np.array(w) - yy[ig:ig + 3]), *(np.array(f) - yy[ia:ia + 3])))
+
+    eps = np.array([1e-6] * 3 + [1e-8, 1e-4] + [1.0] * 2 + [1e-5] * 3 + [1e-7] * 3)
+    y = np.array(y)
+    for j in list(range(5)) + list(range(7, 13)):
+        e = np.zeros(13)
+        e[j] = eps[j]
+        fd = (stage_full(y + e) - stage_full(y - e)) / (2 * eps[j])
+        np.testing.assert_allclose(A[:5, j], fd[:5], rtol=2e-5, atol=1e-9 * max(1.0, np.abs(fd).max()))
+        assert hneg[j] == pytest.approx(fd[5], rel=2e-5, abs=1e-9 * max(1.0, abs(fd[5])))
+
+
+def test_gnss_observation_jacobians_against_finite_differences(paper_sim):
+    est = _filter(paper_sim)
+    sim, start, _ = paper_sim
+    chunk = sim.advance(100)
+    g = chunk.gnss
+    ok = g.valid[0]
+    pos, vel = g.sat_pos_e[0][ok], g.sat_vel_e[0][ok]
+    phi, v = est._Y[3], 20.0
+    h_r, h_v, t_e = est.gnss_model(phi, v, pos, vel)
+    h_rc, h_vc, _ = est.gnss_model(complex(phi, 1e-20), v, pos, vel)
+    dphi = 1e-8
+    fd_r = (est.gnss_model(phi + dphi, v, pos, vel)[0] - est.gnss_model(phi - dphi, v, pos, vel)[0]) / (2 * dphi)
+    fd_v = (est.gnss_model(phi + dphi, v, pos, vel)[1] - est.gnss_model(phi - dphi, v, pos, vel)[1]) / (2 * dphi)
+    np.testing.assert_allclose(h_rc.imag / 1e-20, fd_r, rtol=1e-6)
+    np.testing.assert_allclose(h_vc.imag / 1e-20, fd_v, rtol=1e-4, atol=1e-3)
+    los = (pos - est._ecef(phi)) / h_r[:, None]
+    dv = 1e-3
+    fd_vv = (est.gnss_model(phi, v + dv, pos, vel)[1] - est.gnss_model(phi, v - dv, pos, vel)[1]) / (2 * dv)
+    np.testing.assert_allclose(-(los @ t_e), fd_vv, rtol=1e-8)
+    # (9) against the truth: noise-free ranges agree with the simulator's geometry
+    truth = chunk.truth
+    yt = paper_state(truth.lat[99:100], truth.lon[99:100], truth.velocity_n[99:100], truth.heading[99:100],
+                     truth.pitch[99:100], truth.roll[99:100], truth.t[99:100], SPHERICAL.rate)[0]
+    rho, _, _ = est.gnss_model(yt[3], yt[4], pos, vel)
+    np.testing.assert_allclose(rho, np.linalg.norm(pos - truth.position_e[99], axis=1), atol=2e-3)
+
+
+def _error9(sol_est, sol_true, earth):
+    """The metrics convention (navsim.metrics.error_vector) for two solutions."""
+    lat, lon, h = sol_true[:3]
+    d_e = (sol_est[1] - lon) * (earth.a + h) * math.cos(lat)
+    d_n = (sol_est[0] - lat) * (earth.a + h)
+    rel = mat_nb_from_hpr(*sol_est[6:9]) @ mat_nb_from_hpr(*sol_true[6:9]).T
+    return np.concatenate([[d_e, d_n, sol_est[2] - h], sol_est[3:6] - sol_true[3:6], quat_to_rotvec(mat_to_quat(rel))])
+
+
+def test_output_covariance_jacobian_against_finite_differences(paper_sim):
+    est = _filter(paper_sim)
+    y = np.array(_random_state(est))
+    t = np.array([321.0])
+    eps = np.array([1e-6, 1e-6, 1e-6, 1e-8, 1e-3])
+    # J is recovered from the covariance of unit perturbations: cov(e_j) = J e_j e_j^T J^T
+    for j in range(5):
+        p = np.zeros((1, 5, 5))
+        p[0, j, j] = 1.0
+        _, cov = est.outputs(y[None], p, t)
+        col = np.sqrt(np.clip(np.diag(cov[0]), 0.0, None))
+        yp, ym = y.copy(), y.copy()
+        yp[j] += eps[j]
+        ym[j] -= eps[j]
+        sp = est.outputs(yp[None], np.zeros((1, 5, 5)), t)[0][0]
+        sm = est.outputs(ym[None], np.zeros((1, 5, 5)), t)[0][0]
+        s0 = est.outputs(y[None], np.zeros((1, 5, 5)), t)[0][0]
+        fd = (_error9(sp, s0, SPHERICAL) - _error9(sm, s0, SPHERICAL)) / (2 * eps[j])
+        np.testing.assert_allclose(col, np.abs(fd), rtol=1e-4, atol=1e-9 * np.abs(fd).max())
+
+
+def test_paper_state_round_trip(paper_sim):
+    """outputs(paper_state(solution)) returns the solution (truth lies on the track)."""
+    sim, start, ctx = paper_sim
+    est = _filter(paper_sim)
+    tr = sim.truth_at(np.array([1.0, 2.5, 3.9]))
+    y = paper_state(tr.lat, tr.lon, tr.velocity_n, tr.heading, tr.pitch, tr.roll, tr.t, SPHERICAL.rate)
+    sol, _ = est.outputs(y, np.zeros((3, 5, 5)), tr.t)
+    np.testing.assert_allclose(sol[:, 0], tr.lat, atol=1e-15)
+    np.testing.assert_allclose(sol[:, 1], tr.lon, atol=1e-12)
+    np.testing.assert_allclose(sol[:, 2], tr.h, atol=1e-6)
+    np.testing.assert_allclose(sol[:, 3:6], tr.velocity_n, atol=1e-9)
+    np.testing.assert_allclose(sol[:, 6:9], np.column_stack([tr.heading, tr.pitch, tr.roll]), atol=1e-12)
+
+
+# ---------------------------------------------------------------------------- runs
+def _run_states(sim, seed, **options):
+    start = sim.reset(seed)
+    ctx = make_context(sim)
+    est = PaperEkf(**options)
+    est.reset(ctx, start.prior)
+    prn = np.asarray(sim.constellation.prn)
+    ys, ps, truth, ts, nis, dof = [], [], [], [], [], []
+    for chunk in sim.chunks(10_000):
+        out = est.step_batch(measurement_batch(chunk, prn, ctx.nav_period_s))
+        ys.append(est.last_states[:, :5])
+        ps.append(est.last_state_cov[:, :5, :5])
+        truth.append(chunk.truth)
+        ts.append(chunk.t)
+        nis.append(out.nis)
+        dof.append(out.nis_dof)
+    t = np.concatenate(ts)
+    cat = lambda f: np.concatenate([getattr(x, f) for x in truth])  # noqa: E731
+    yt = paper_state(cat("lat"), cat("lon"), cat("velocity_n"), cat("heading"), cat("pitch"), cat("roll"), t,
+                     ctx.earth.rate)
+    e = np.concatenate(ys) - yt
+    e[:, :3] = (e[:, :3] + np.pi) % (2 * np.pi) - np.pi
+    p = np.concatenate(ps)
+    nees = np.einsum("ni,ni->n", e, np.linalg.solve(p, e[..., None])[..., 0])
+    nis, dof = np.concatenate(nis), np.concatenate(dof)
+    return est, e, p, nees, nis[dof > 0], dof[dof > 0]
+
+
+def test_step_equals_step_batch():
+    sim = Simulator(_scenario(6.0, (2.0, 4.0)))
+    start = sim.reset(3)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    chunk = sim.advance(600)
+    a, b = PaperEkf(cov_step_s=0.1), PaperEkf(cov_step_s=0.1)
+    a.reset(ctx, start.prior)
+    b.reset(ctx, start.prior)
+    batch = a.step_batch(measurement_batch(chunk, prn, ctx.nav_period_s))
+    singles = [b.step(m) for m in measurements(chunk, prn, ctx.nav_period_s)]
+    sol = np.array([e.as_action() for e in singles])
+    np.testing.assert_allclose(batch.solution, sol, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(batch.covariance, np.array([e.covariance for e in singles]), rtol=1e-10, atol=1e-25)
+    got_nis = np.array([np.nan if e.nis is None else e.nis for e in singles])
+    np.testing.assert_allclose(batch.nis, got_nis, rtol=1e-10)
+    assert (batch.nis_dof == [e.nis_dof or 0 for e in singles]).all()
+    assert batch.nis_dof.max() > 2  # epochs with satellites happened, and the outage (no update)
+    assert np.isnan(batch.nis[299])
+
+
+def test_start_up_stiffness_is_handled(paper_sim):
+    """The huge initial gain is integrated with adaptive sub-steps; P stays positive definite."""
+    sim = Simulator(_scenario(3.0, None))
+    est, e, p, nees, *_ = _run_states(sim, 1)
+    assert 5 < est.substeps < 200
+    assert np.all(np.linalg.eigvalsh(p) > 0)
+    # the attitude axis seen by the accelerometer observer drops from the prior 1.7e-3 rad
+    # to ~1e-5 rad within the first second, and the error follows
+    sig_min = np.sqrt(np.linalg.eigvalsh(p[-1, :3, :3])[0])
+    assert sig_min < 5e-5
+    axis = np.linalg.eigh(p[-1, :3, :3])[1][:, 0]
+    assert abs(e[-1, :3] @ axis) < 5 * sig_min
+
+
+def test_nees_and_nis_consistency_few_seeds():
+    """Cheap version of the slow test below: 3 seeds x 40 s (with a 12 s outage)."""
+    sim = Simulator(_scenario(40.0, (16.0, 28.0)))
+    runs = [_run_states(sim, seed, cov_step_s=0.1) for seed in range(3)]
+    nees = np.mean([r[3] for r in runs], axis=0)
+    lo, hi = chi2.ppf([0.025, 0.975], 5 * 3) / 3
+    inside = np.mean((nees >= lo) & (nees <= hi))
+    assert inside > 0.85, inside
+    assert 3.5 < nees.mean() < 6.5
+    nis = np.concatenate([r[4] for r in runs])
+    dof = np.concatenate([r[5] for r in runs])
+    assert nis.sum() / dof.sum() == pytest.approx(1.0, abs=0.1)
+
+
+@pytest.mark.slow
+def test_nees_consistency_twenty_seeds():
+    """20 seeds x 300 s, outage 120-210 s: mean NEES inside the 95 % chi-square band."""
+    sim = Simulator(_scenario(300.0, (120.0, 210.0)))
+    runs = [_run_states(sim, seed) for seed in range(20)]
+    nees = np.mean([r[3] for r in runs], axis=0)
+    lo, hi = chi2.ppf([0.025, 0.975], 5 * 20) / 20
+    inside = np.mean((nees >= lo) & (nees <= hi))
+    assert inside > 0.9, inside
+    assert lo < nees.mean() < hi
+
+
+def test_printed_errors_degrade_the_solution():
+    """The printed centrifugal sign becomes a ~3.4 mrad attitude bias; the printed Phi diverges."""
+    sim = Simulator(_scenario(30.0, None))
+    _, e_ok, *_ = _run_states(sim, 0, cov_step_s=0.1)
+    _, e_cent, *_ = _run_states(sim, 0, cov_step_s=0.1, as_printed="centrifugal")
+    _, e_kin, *_ = _run_states(sim, 0, cov_step_s=0.1, as_printed="kinematics")
+    tilt = 2 * SPHERICAL.rate ** 2 * SPHERICAL.a * math.cos(0.824) * math.sin(0.824) / 9.81
+    assert np.abs(e_ok[-1, :3]).max() < 3e-3
+    assert abs(e_cent[-1, 0]) == pytest.approx(tilt, rel=0.2)
+    assert np.abs(e_kin[-1, :3]).max() > 0.05
+
+
+def test_extended_mode_estimates_the_receiver_clock():
+    """Standalone receiver (clock 3 km): faithful mode is lost, extended mode tracks."""
+    sc = _scenario(30.0, None, earth="wgs84", gnss={"preset": "standalone"})
+    sim = Simulator(sc)
+    errs = {}
+    for mode in ("faithful", "extended"):
+        start = sim.reset(2)
+        ctx = make_context(sim)
+        est = PaperEkf(mode=mode, cov_step_s=0.1)
+        est.reset(ctx, start.prior)
+        prn = np.asarray(sim.constellation.prn)
+        chunk = next(sim.chunks(3000))
+        out = est.step_batch(measurement_batch(chunk, prn, ctx.nav_period_s))
+        errs[mode] = abs(out.solution[-1, 0] - chunk.truth.lat[-1]) * 6.37e6
+        if mode == "extended":
+            assert est.n_states == 7
+    assert errs["extended"] < 15.0  # m: ionosphere/troposphere are not modelled (metres)
+    assert errs["faithful"] > 10 * errs["extended"]
+
+
+def test_divergence_is_a_flag_not_a_crash(paper_sim):
+    sim, start, ctx = paper_sim
+    est = _filter(paper_sim)
+    chunk = Simulator(_scenario(1.0, None)).run(0)[1][0]
+    prn = np.arange(chunk.gnss.valid.shape[1])
+    meas = list(measurements(chunk, prn, 0.01))
+    bad = meas[5]
+    bad = type(bad)(bad.step, bad.t, bad.dt, bad.dtheta_r * np.nan, bad.dv_r, bad.dtheta_sub, bad.dv_sub, None)
+    for m in meas[:5]:
+        assert not est.step(m).extra["diverged"]
+    e = est.step(bad)
+    assert e.extra["diverged"] and est.diverged
+    assert np.isnan(est.step(meas[6]).lat)
+
+
+def test_spline_track_is_fitted(paper_sim):
+    """A non-polynomial track is turned into lambda(phi), h(phi) pieces within tolerance."""
+    from navsim.estimators.paper_ekf import TrackFunctions
+    from navsim.track import load_bundled_track
+    from navsim.earth import WGS84
+
+    track = load_bundled_track("mountain-railway", earth=WGS84)
+    tf = TrackFunctions(track, 0.2)
+    assert tf.fit is not None and tf.fit.max_error_m <= 0.2 and len(tf.breaks) > 10
+    s = np.linspace(0.0, track.length, 50)
+    lat, lon, h = track.geodetic(s)[0].T
+    lam, *_, hh, _, _ = tf.arrays(lat)
+    assert np.max(np.abs(lam - lon) * WGS84.a * np.cos(lat)) < 5.0  # east offset; cross-track <= 0.2 m
+    assert np.max(np.abs(hh - h)) < 0.2
+    # the scalar and the array evaluations agree, also inside pieces
+    for x in lat[::7]:
+        np.testing.assert_allclose(tf.scalars(float(x))[:2], [v[0] for v in tf.arrays(np.array([x]))[:2]], rtol=1e-13)
+    with pytest.raises(ConfigError, match="lambda"):
+        TrackFunctions(load_bundled_track("urban-road", earth=WGS84))
