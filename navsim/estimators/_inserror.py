@@ -73,10 +73,16 @@ transport rates (tests: Phi within 1e-5 relative of expm(F tau) over 1 s). Every
 at step j, so stepping one step at a time and advancing many steps at once give the same
 numbers (to rounding): the contract of ``step_batch``.
 
-Bias compensation: the biases are constant between updates, so a constant ``b`` is
-removed from every order r of the multiple integrals over a step exactly as
-``b dt^r / r!`` and from every sub-sample increment as ``b h``
-(:func:`compensate_increments`), before the strapdown algorithms see the data.
+Bias compensation: the biases are constant between updates. :func:`body_terms` computes
+the body-frame strapdown terms of a whole batch once from the raw IMU data (the same
+registry methods and second-order rotation terms as :func:`navsim.strapdown.ins.integrate`),
+and :meth:`BodyTerms.compensated` removes the current bias estimates from them linearly,
+exact to first order in the biases and for the bilinear rotation terms (derivation there);
+the remainder is of order ``b x omega' T^3`` per step. The sequential loop is the
+strapdown module's own (``navsim.strapdown.ins._run``, a private function: see the
+report asking for a public entry point). :func:`compensate_increments` removes constant
+biases from raw increments exactly (``b dt^r / r!`` per order), the reference the tests
+compare the linear form with.
 
 References
 ----------
