@@ -446,3 +446,26 @@ def test_spline_track_is_fitted(paper_sim):
         np.testing.assert_allclose(tf.scalars(float(x))[:2], [v[0] for v in tf.arrays(np.array([x]))[:2]], rtol=1e-13)
     with pytest.raises(ConfigError, match="lambda"):
         TrackFunctions(load_bundled_track("urban-road", earth=WGS84))
+
+
+# ---------------------------------------------------------------------------- navsim paper 003
+def test_seed003_example_machinery_short():
+    from navsim.paper.seed003 import _summary, run_example
+
+    ex = run_example((0,), {"c": {"cov_step_s": 0.1}}, duration_s=20.0)
+    res = ex["runs"]["c"][0]
+    assert res["e"].shape == (2000, 5) and not res["diverged"]
+    vy, ang, ang_abs, lat = _summary(ex["runs"]["c"], ex["truth"], ex["r"], 1999)
+    assert vy < 2.0 and lat < 15.0 and ang_abs < 5e-3  # within a few prior sigmas after 20 s
+
+
+@pytest.mark.slow
+def test_seed003_run_quick():
+    from navsim.paper import seed003
+
+    rows = seed003.run(quick=True)
+    assert all(set(r) == {"ref", "quantity", "paper", "navsim", "unit"} for r in rows)
+    get = {r["quantity"]: r["navsim"] for r in rows}
+    lat_ok = next(v for k, v in get.items() if k.startswith("latitude error at 1000 s") and "corrected" in k)
+    lat_printed = next(v for k, v in get.items() if k.startswith("latitude error at 1000 s") and "both" in k)
+    assert lat_ok < 14.0 < lat_printed
