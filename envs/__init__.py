@@ -1,0 +1,92 @@
+"""navsim.envs: the Gymnasium face of navsim.
+
+Importing this package registers one navigation env id per bundled scenario file and
+the two learning tasks (Gymnasium's ``register``; calling :func:`register_envs` again is
+harmless):
+
+==============================  =====================  =========================================
+id                              scenario               env
+==============================  =====================  =========================================
+``navsim/PaperRail-v0``         ``paper-2012``         :class:`NavigationEnv`
+``navsim/MountainRailway-v0``   ``mountain-railway``   :class:`NavigationEnv`
+``navsim/UrbanRoad-v0``         ``urban-road``         :class:`NavigationEnv`
+``navsim/AdaptiveFilter-v0``    ``paper-2012``         :class:`AdaptiveFilterEnv`
+``navsim/TrainDriving-v0``      ``mountain-railway``   :class:`DrivingEnv`
+==============================  =====================  =========================================
+
+A scenario file added later gets ``navsim/<CamelCaseName>-v0``. The navigation ids have a
+native vector implementation (:class:`NavigationVectorEnv`):
+``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``.
+
+``gym.make(id, **kwargs)`` takes scenario overrides as nested dicts
+(``timing={"duration_s": 60}``); the resolved scenario (name, config hash, TOML) is in
+the reset info. Without importing navsim.envs first, ``gym.make("navsim.envs:navsim/PaperRail-v0")``
+imports and registers in one call.
+
+The core (``navsim``) never imports Gymnasium; this package is the only one that does.
+"""
+
+from __future__ import annotations
+
+from navsim.scenario import list_scenarios
+
+from .agent import EstimateAction, EstimatorAgent, evaluate
+from .navigation import NavigationEnv
+
+__all__ = ["register_envs", "env_ids", "scenario_of", "NavigationEnv", "NavigationVectorEnv", "AdaptiveFilterEnv",
+           "DrivingEnv", "EstimatorAgent", "EstimateAction", "evaluate", "SCENARIO_IDS"]
+
+SCENARIO_IDS = {"paper-2012": "navsim/PaperRail-v0"}
+"""Scenario names whose env id is not the CamelCase of the name."""
+
+_TASKS = {
+    "navsim/AdaptiveFilter-v0": "navsim.envs.adaptive:AdaptiveFilterEnv",
+    "navsim/TrainDriving-v0": "navsim.envs.driving:DrivingEnv",
+}
+
+
+def _camel(name: str) -> str:
+    return "".join(part[:1].upper() + part[1:] for part in name.replace("_", "-").split("-") if part)
+
+
+def env_ids() -> dict[str, str]:
+    """Navigation env id -> scenario name, for every bundled scenario file."""
+    return {SCENARIO_IDS.get(name, f"navsim/{_camel(name)}-v0"): name for name in list_scenarios()}
+
+
+def scenario_of(env_id: str) -> str:
+    """The scenario name behind a navigation env id."""
+    return env_ids()[env_id]
+
+
+def register_envs() -> None:
+    """Register the navsim ids with Gymnasium (idempotent)."""
+    from gymnasium.envs.registration import register, registry
+
+    for env_id, scenario in env_ids().items():
+        if env_id not in registry:
+            register(id=env_id, entry_point="navsim.envs.navigation:NavigationEnv",
+                     vector_entry_point="navsim.envs.vector:NavigationVectorEnv",
+                     kwargs={"scenario": scenario}, disable_env_checker=False)
+    for env_id, entry in _TASKS.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point=entry)
+
+
+def __getattr__(name: str):
+    if name == "NavigationVectorEnv":
+        from .vector import NavigationVectorEnv
+
+        return NavigationVectorEnv
+    if name == "AdaptiveFilterEnv":
+        from .adaptive import AdaptiveFilterEnv
+
+        return AdaptiveFilterEnv
+    if name == "DrivingEnv":
+        from .driving import DrivingEnv
+
+        return DrivingEnv
+    raise AttributeError(f"module 'navsim.envs' has no attribute {name!r}")
+
+
+register_envs()

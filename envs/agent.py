@@ -1,0 +1,180 @@
+"""Estimators as agents, and scoring any agent through the environment.
+
+:class:`EstimatorAgent` turns an estimator (anything with ``reset(context, prior)`` and
+``step(measurement) -> Estimate``, see :mod:`navsim.estimators.base`) into an agent of
+the navigation env: it rebuilds the :class:`~navsim.estimators.base.Measurement` of each
+observation (the same arrays :func:`navsim.episode.measurements` hands out) and returns
+the estimate as an :class:`EstimateAction`, an action array that also carries the
+covariance, the NIS of an update and the estimator's CPU time, so the env's episode score
+holds every figure of ``navsim run``.
+
+:func:`evaluate` runs an agent over seeds and returns the per-episode scores.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Iterable
+
+import numpy as np
+
+from navsim.errors import ConfigError
+
+__all__ = ["EstimateAction", "EstimatorAgent", "evaluate"]
+
+
+class EstimateAction(np.ndarray):
+    """A (9,) action array carrying ``extras = (covariance, nis, nis_dof, cpu_s)``.
+
+    It is an ordinary action for every wrapper and learner; the navigation env reads the
+    extras into the episode record (covariance for NEES, NIS, CPU time).
+    """
+
+    extras: tuple = (None, None, None, None)
+
+    @classmethod
+    def of(cls, estimate, cpu_s: float | None = None, scale=None) -> "EstimateAction":
+        """From an :class:`~navsim.estimators.base.Estimate`, divided by ``scale``
+        (the env's ``info["action_scale"]``; None: physical units)."""
+        v = estimate.velocity_n
+        out = np.array([estimate.lat, estimate.lon, estimate.h, v[0], v[1], v[2], estimate.heading,
+                        estimate.pitch, estimate.roll], dtype=float)
+        if scale is not None:
+            out /= scale
+        out = out.view(cls)
+        out.extras = (estimate.covariance, estimate.nis, estimate.nis_dof or 0, cpu_s)
+        return out
+
+    def __array_finalize__(self, obj):
+        self.extras = getattr(obj, "extras", (None, None, None, None)) if obj is not None else (None, None, None, None)
+
+
+class EstimatorAgent:
+    """An estimator driven by the navigation env's observations.
+
+    Parameters
+    ----------
+    estimator : estimator object or str
+        An object with ``reset(context, prior)`` and ``step(measurement)``, or the name
+        of a bundled estimator (:func:`navsim.estimators.make`).
+    name : str, optional
+        Label of the episode scores (default: the registry name or the class name).
+    **options
+        Options of a named estimator.
+
+    Examples
+    --------
+    >>> agent = EstimatorAgent("ins-only")                      # doctest: +SKIP
+    >>> obs, info = env.reset(seed=0); agent.reset(info)
+    >>> obs, reward, terminated, truncated, info = env.step(agent.act(obs))
+    """
+
+    def __init__(self, estimator: Any, name: str | None = None, **options: Any) -> None:
+        if isinstance(estimator, str):
+            from navsim.estimators import make
+
+            self.name = name or estimator
+            estimator = make(estimator, **options)
+        else:
+            if options:
+                raise ConfigError("EstimatorAgent options", "options only with an estimator name", options)
+            self.name = name or type(estimator).__name__
+        if not (callable(getattr(estimator, "reset", None)) and callable(getattr(estimator, "step", None))):
+            raise ConfigError("estimator", "an object with reset(context, prior) and step(measurement)", estimator)
+        self.estimator = estimator
+        self.last_estimate = None
+
+    def reset(self, info: dict) -> None:
+        """Reset the estimator from the env's reset info (context, prior, channel order)."""
+        context = info["context"]
+        self.estimator.reset(context, info["prior"])
+        self._prn = np.asarray(info["gnss_prn"])
+        self._dt = float(context.nav_period_s)
+        self._scale = np.asarray(info.get("action_scale", np.ones(9)), dtype=float)
+        self._step = 0
+
+    def measurement(self, obs: dict):
+        """The :class:`~navsim.estimators.base.Measurement` of one observation."""
+        from navsim.estimators.base import GnssObservation, Measurement
+
+        t = float(obs["t"][0])
+        gnss = None
+        if obs["gnss_new_epoch"][0]:
+            gnss = GnssObservation(
+                t=t, prn=self._prn, sat_pos_e=obs["sat_pos_e"], sat_vel_e=obs["sat_vel_e"],
+                pseudorange_m=obs["pseudorange_m"], pseudorange_rate_mps=obs["pseudorange_rate_mps"],
+                valid=np.asarray(obs["gnss_valid"], dtype=bool),
+            )
+        m = Measurement(step=self._step, t=t, dt=self._dt, dtheta_r=obs["dtheta_r"], dv_r=obs["dv_r"],
+                        dtheta_sub=obs["dtheta_sub"], dv_sub=obs["dv_sub"], gnss=gnss)
+        self._step += 1
+        return m
+
+    def act(self, obs: dict) -> EstimateAction:
+        """The estimator's solution for the observed step (with its extras)."""
+        m = self.measurement(obs)
+        t0 = time.process_time()
+        estimate = self.estimator.step(m)
+        cpu = time.process_time() - t0
+        self.last_estimate = estimate
+        return EstimateAction.of(estimate, cpu, self._scale)
+
+    __call__ = act
+
+
+def _as_agent(agent_or_estimator: Any):
+    if isinstance(agent_or_estimator, (str, EstimatorAgent)):
+        return agent_or_estimator if isinstance(agent_or_estimator, EstimatorAgent) else EstimatorAgent(agent_or_estimator)
+    if callable(getattr(agent_or_estimator, "act", None)) and callable(getattr(agent_or_estimator, "reset", None)):
+        return agent_or_estimator  # an agent: reset(info), act(obs)
+    return EstimatorAgent(agent_or_estimator)
+
+
+def evaluate(agent_or_estimator: Any, env_id: Any = "navsim/PaperRail-v0", seeds: Iterable[int] = (0,),
+             **env_kwargs: Any) -> list:
+    """Run an agent (or estimator) through the navigation env over ``seeds``.
+
+    Parameters
+    ----------
+    agent_or_estimator : EstimatorAgent, estimator object, estimator name, or an agent
+        with ``reset(info)`` and ``act(obs) -> action``.
+    env_id : str or gymnasium.Env
+        A registered id (``"navsim/PaperRail-v0"``) or an env instance (kept open).
+    seeds : iterable of int
+    **env_kwargs
+        Passed to :func:`gymnasium.make` (scenario overrides, reward options).
+
+    Returns
+    -------
+    list of navsim.metrics.EpisodeScore
+        One per seed, the figures ``navsim run`` reports for the same estimator,
+        scenario and seed (the CPU figures are the agent's own time).
+    """
+    import gymnasium as gym
+
+    from . import register_envs
+
+    register_envs()
+    agent = _as_agent(agent_or_estimator)
+    own = isinstance(env_id, str)
+    env = gym.make(env_id, **env_kwargs) if own else env_id
+    name = getattr(agent, "name", type(agent).__name__)
+    scores = []
+    try:
+        for seed in seeds:
+            obs, info = env.reset(seed=int(seed), options={"agent": name})
+            agent.reset(info)
+            act = agent.act
+            step = env.step
+            while True:
+                obs, reward, terminated, truncated, info = step(act(obs))
+                if terminated or truncated:
+                    break
+            score = info.get("episode_score")
+            if score is None:
+                raise ConfigError("env score", "an env that scores episodes (score=True)", env_kwargs.get("score"))
+            scores.append(score)
+    finally:
+        if own:
+            env.close()
+    return scores

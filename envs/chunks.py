@@ -1,0 +1,215 @@
+"""Translation of simulator chunks into per-step observations, truth rows and flags.
+
+One pass per chunk (vectorised over its steps) prepares everything the per-step code
+needs, so :meth:`NavigationEnv.step` only indexes: observation arrays (read-only, one
+row per step), truth rows as Python floats for the reward, the held GNSS flags, and the
+chunk-local epoch index of every step. The vector env stacks the same arrays across
+its sub-environments. No physics here: every number comes from the
+:class:`~navsim.simulator.Chunk`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["PreparedChunk", "prepare_chunk", "EpisodeTape", "TRUTH_COLUMNS"]
+
+TRUTH_COLUMNS = ("lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "roll", "k_north", "k_east", "s")
+"""Columns of :attr:`PreparedChunk.truth`: the action layout, then the metres-per-radian
+factors ``k_north = R_N + h`` and ``k_east = (R_E + h) cos(lat)`` of the reward, then
+the arc length s."""
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(slots=True)
+class PreparedChunk:
+    """A chunk ready to be served step by step.
+
+    Attributes
+    ----------
+    n : int
+        Steps in the chunk. step0 : int, index of its first step in the episode.
+    t, dtheta_r, dv_r, dtheta_sub, dv_sub : read-only arrays (n, ...)
+        The IMU part of the observation (see :mod:`navsim.envs.spaces`).
+    epoch_at : list[int]
+        For each step, the chunk-local index of the GNSS epoch at its end, or -1.
+    new_epoch : read-only (n, 1) int8, 1 at epoch steps.
+    valid, pseudorange_m, pseudorange_rate_mps, sat_pos_e, sat_vel_e : read-only
+        The GNSS part, one row per step (zeros between epochs) or one per epoch (see
+        :func:`prepare_chunk`); ``valid`` as int8.
+    truth : ndarray (n, 12)
+        Truth rows in :data:`TRUTH_COLUMNS` order; ``truth_rows`` the same as lists.
+    receiver_outage, n_valid : list
+        Per step, the receiver-outage flag and the count of valid channels of the latest
+        epoch at or before the step (held between epochs; carried across chunks).
+    chunk : the simulator's Chunk.
+    """
+
+    n: int
+    step0: int
+    t: np.ndarray
+    dtheta_r: np.ndarray
+    dv_r: np.ndarray
+    dtheta_sub: np.ndarray
+    dv_sub: np.ndarray
+    epoch_at: list
+    new_epoch: np.ndarray
+    valid: np.ndarray | None
+    pseudorange_m: np.ndarray | None
+    pseudorange_rate_mps: np.ndarray | None
+    sat_pos_e: np.ndarray | None
+    sat_vel_e: np.ndarray | None
+    truth: np.ndarray
+    truth_rows: list
+    receiver_outage: list
+    n_valid: list
+    last_outage: bool
+    last_n_valid: int
+    chunk: object
+
+
+def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: int, rows: bool = True,
+                  per_step_gnss: bool = True) -> PreparedChunk:
+    """Prepare a :class:`~navsim.simulator.Chunk` (see :class:`PreparedChunk`).
+
+    ``held_outage``, ``held_n_valid``: the flags of the last epoch of the previous
+    chunk (False, 0 at the episode start). ``rows``: also build the Python lists used by
+    the single env (the vector env reads the arrays). ``per_step_gnss``: GNSS arrays
+    with one row per step (zeros between epochs) instead of one row per epoch.
+    """
+    n = len(chunk)
+    imu = chunk.imu
+    tr = chunk.truth
+    r_n, r_e = earth.radii(tr.lat)
+    truth = np.empty((n, len(TRUTH_COLUMNS)))
+    truth[:, 0], truth[:, 1], truth[:, 2] = tr.lat, tr.lon, tr.h
+    truth[:, 3:6] = tr.velocity_n
+    truth[:, 6], truth[:, 7], truth[:, 8] = tr.heading, tr.pitch, tr.roll
+    truth[:, 9] = r_n + tr.h
+    truth[:, 10] = (r_e + tr.h) * np.cos(tr.lat)
+    truth[:, 11] = tr.s
+    epoch_at = np.full(n, -1, dtype=np.int64)
+    g = chunk.gnss
+    if g is not None and len(chunk.gnss_step):
+        epoch_at[chunk.gnss_step] = np.arange(len(chunk.gnss_step))
+        n_valid_epoch = g.valid.sum(axis=1)
+        # latest epoch at or before each step (-1: none yet in this chunk)
+        latest = np.maximum.accumulate(np.where(epoch_at >= 0, epoch_at, -1))
+        have = latest >= 0
+        outage = np.where(have, chunk.receiver_outage[np.maximum(latest, 0)], held_outage)
+        n_valid = np.where(have, n_valid_epoch[np.maximum(latest, 0)], held_n_valid)
+        last_outage, last_n_valid = bool(outage[-1]), int(n_valid[-1])
+    else:
+        outage = np.full(n, held_outage)
+        n_valid = np.full(n, held_n_valid)
+        last_outage, last_n_valid = held_outage, held_n_valid
+    new_epoch = (epoch_at >= 0).astype(np.int8)[:, None]
+    if per_step_gnss:
+        # one row per step, zero between epochs: no two observations share memory
+        valid = np.zeros((n, n_sats), dtype=np.int8)
+        gnss = (np.zeros((n, n_sats)), np.zeros((n, n_sats)), np.zeros((n, n_sats, 3)), np.zeros((n, n_sats, 3)))
+        if g is not None and len(chunk.gnss_step):
+            rows_e = chunk.gnss_step
+            valid[rows_e] = g.valid
+            for dst, src in zip(gnss, (g.pseudorange_m, g.pseudorange_rate_mps, g.sat_pos_e, g.sat_vel_e)):
+                dst[rows_e] = src
+    elif g is not None:
+        valid = g.valid.astype(np.int8)
+        gnss = (g.pseudorange_m, g.pseudorange_rate_mps, g.sat_pos_e, g.sat_vel_e)
+    else:
+        valid, gnss = None, (None, None, None, None)
+    valid = None if valid is None else _frozen(valid)
+    gnss = tuple(None if x is None else _frozen(x) for x in gnss)
+    return PreparedChunk(
+        n=n, step0=chunk.step0, t=_frozen(chunk.t[:, None]), dtheta_r=_frozen(imu.dtheta_r), dv_r=_frozen(imu.dv_r),
+        dtheta_sub=_frozen(imu.dtheta_sample[:, :, 0, :]), dv_sub=_frozen(imu.dv_sample[:, :, 0, :]),
+        epoch_at=epoch_at.tolist(), new_epoch=_frozen(new_epoch), valid=valid, pseudorange_m=gnss[0], pseudorange_rate_mps=gnss[1],
+        sat_pos_e=gnss[2], sat_vel_e=gnss[3], truth=truth, truth_rows=truth.tolist() if rows else [],
+        receiver_outage=outage.astype(bool).tolist(), n_valid=n_valid.astype(int).tolist(),
+        last_outage=last_outage, last_n_valid=last_n_valid, chunk=chunk,
+    )
+
+
+class EpisodeTape:
+    """Truth, GNSS availability and the agent's actions of one episode, for scoring.
+
+    Truth is written per chunk into arrays preallocated for the whole episode; actions
+    arrive one per step as lists (appending a list is cheaper than a NumPy row write)
+    and become one (n, 9) array at the end. ``covariance``, ``nis``: optional per-step
+    extras an :class:`~navsim.envs.agent.EstimateAction` carries.
+    """
+
+    def __init__(self, n_steps: int):
+        self.n = n_steps
+        self.s = np.empty(n_steps)
+        self.lat = np.empty(n_steps)
+        self.lon = np.empty(n_steps)
+        self.h = np.empty(n_steps)
+        self.velocity_n = np.empty((n_steps, 3))
+        self.hpr = np.empty((n_steps, 3))
+        self.actions: list = []
+        self.cov: dict[int, np.ndarray] = {}
+        self.nis: dict[int, tuple[float, int]] = {}
+        self.cpu: dict[int, float] = {}
+        self.gnss_t: list = []
+        self.gnss_n_valid: list = []
+        self.gnss_outage: list = []
+
+    def add_chunk(self, prepared: PreparedChunk) -> None:
+        """Copy a chunk's truth and GNSS availability into the tape."""
+        k = slice(prepared.step0, prepared.step0 + prepared.n)
+        tr = prepared.chunk.truth
+        self.s[k], self.lat[k], self.lon[k], self.h[k] = tr.s, tr.lat, tr.lon, tr.h
+        self.velocity_n[k] = tr.velocity_n
+        self.hpr[k, 0], self.hpr[k, 1], self.hpr[k, 2] = tr.heading, tr.pitch, tr.roll
+        g = prepared.chunk.gnss
+        if g is not None:
+            self.gnss_t.append(g.t)
+            self.gnss_n_valid.append(g.valid.sum(axis=1))
+            self.gnss_outage.append(prepared.chunk.receiver_outage)
+
+    def estimates(self, scale=None) -> np.ndarray:
+        """(n, 9) solutions so far (actions times ``scale``), nan-padded to the episode length."""
+        est = np.full((self.n, 9), np.nan)
+        if self.actions:
+            est[: len(self.actions)] = np.asarray(self.actions, dtype=float)
+        return est if scale is None else est * scale
+
+    def record(self, scenario, seed, name: str, earth, prior, scale=None):
+        """The :class:`~navsim.episode.EpisodeRecord` of the episode (as ``run_episode``)."""
+        from navsim.episode import EpisodeRecord
+
+        n = self.n
+        est = self.estimates(scale)
+        cov = None
+        if self.cov:
+            cov = np.full((n, 9, 9), np.nan)
+            for k, c in self.cov.items():
+                cov[k] = c
+        nis = np.full(n, np.nan)
+        nis_dof = np.zeros(n, dtype=int)
+        for k, (value, dof) in self.nis.items():
+            nis[k], nis_dof[k] = value, dof
+        cpu = np.full(n, np.nan)
+        if self.cpu:
+            cpu[list(self.cpu)] = list(self.cpu.values())
+        dt = scenario.timing.nav_period_s
+        cat = np.concatenate
+        return EpisodeRecord(
+            scenario=scenario, seed=seed, estimator=name, earth=earth, t=(np.arange(n) + 1) * dt,
+            truth_s=self.s, truth_lat=self.lat, truth_lon=self.lon, truth_h=self.h,
+            truth_velocity_n=self.velocity_n, truth_hpr=self.hpr,
+            est_lat=est[:, 0], est_lon=est[:, 1], est_h=est[:, 2], est_velocity_n=est[:, 3:6], est_hpr=est[:, 6:9],
+            est_cov=cov, nis=nis, nis_dof=nis_dof, step_time_s=cpu,
+            gnss_t=cat(self.gnss_t) if self.gnss_t else np.zeros(0),
+            gnss_n_valid=cat(self.gnss_n_valid) if self.gnss_n_valid else np.zeros(0, dtype=int),
+            gnss_receiver_outage=cat(self.gnss_outage) if self.gnss_outage else np.zeros(0, dtype=bool),
+            prior=prior,
+        )
