@@ -427,25 +427,60 @@ def test_divergence_is_a_flag_not_a_crash(paper_sim):
     assert np.isnan(est.step(meas[6]).lat)
 
 
-def test_spline_track_is_fitted(paper_sim):
-    """A non-polynomial track is turned into lambda(phi), h(phi) pieces within tolerance."""
-    from navsim.estimators.paper_ekf import TrackFunctions
-    from navsim.track import load_bundled_track
+def test_spline_track_local_quintic_lambda_of_phi():
+    """A non-polynomial track becomes C^2 quintic pieces lambda(phi), h(phi) that reproduce
+    its position, heading and curvature between the nodes (the observer needs lambda'')."""
     from navsim.earth import WGS84
+    from navsim.estimators.paper_ekf import TrackFunctions, _quintic_hermite
+    from navsim.track import load_bundled_track, track_frame
+
+    # the quintic Hermite formula reproduces any quintic exactly
+    c = RNG.normal(size=6)
+    p = np.polynomial.Polynomial(c)
+    width = np.array([0.7])
+    ends = [np.array([q(x)]) for x in (0.0, 0.7) for q in (p, p.deriv(1), p.deriv(2))]
+    np.testing.assert_allclose(_quintic_hermite(*ends, width)[0], c, rtol=1e-10, atol=1e-12)
 
     track = load_bundled_track("mountain-railway", earth=WGS84)
-    tf = TrackFunctions(track, 0.2)
-    assert tf.fit is not None and tf.fit.max_error_m <= 0.2 and len(tf.breaks) > 10
-    s = np.linspace(0.0, track.length, 50)
-    lat, lon, h = track.geodetic(s)[0].T
-    lam, *_, hh, _, _ = tf.arrays(lat)
-    assert np.max(np.abs(lam - lon) * WGS84.a * np.cos(lat)) < 5.0  # east offset; cross-track <= 0.2 m
-    assert np.max(np.abs(hh - h)) < 0.2
-    # the scalar and the array evaluations agree, also inside pieces
-    for x in lat[::7]:
-        np.testing.assert_allclose(tf.scalars(float(x))[:2], [v[0] for v in tf.arrays(np.array([x]))[:2]], rtol=1e-13)
-    with pytest.raises(ConfigError, match="lambda"):
+    tf = TrackFunctions(track, 10.0)
+    assert tf.hermite and len(tf.breaks) > 3000
+    s = np.linspace(5.0, track.length - 5.0, 4001)  # mostly between nodes
+    fr = track_frame(track, s)
+    lam, dlam, ddlam, hh, dh, _ = tf.arrays(fr.lat)
+    r_n, r_e = WGS84.radii(fr.lat)
+    assert np.max(np.abs(lam - fr.lon) * r_e * np.cos(fr.lat)) < 1e-3  # m
+    assert np.max(np.abs(hh - fr.h)) < 1e-3
+    # heading: tan(psi) = lambda' cos(phi) (R_E + h) / (R_N + h)
+    k = dlam * np.cos(fr.lat) * (r_e + hh) / (r_n + hh)
+    assert np.max(np.abs(np.arctan(k) - np.arctan(np.tan(fr.heading)))) < 1e-5
+    # curvature (dheading/ds) from lambda'': centripetal acceleration error at 20 m/s
+    dphi_ds = np.cos(fr.pitch) * np.cos(fr.heading) / (r_n + fr.h)
+    dk = (ddlam * np.cos(fr.lat) - dlam * np.sin(fr.lat)) * (r_e + hh) / (r_n + hh)
+    accel_err = 400.0 * np.abs(dk * dphi_ds / (1 + k * k) - fr.dheading_ds)
+    assert np.median(accel_err) < 1e-5 and np.max(accel_err) < 2e-3  # m/s^2 (the radii terms are neglected here)
+    # scalar and array evaluations agree, also inside pieces
+    for x in fr.lat[::500]:
+        np.testing.assert_allclose(tf.scalars(float(x)), [v[0] for v in tf.arrays(np.array([x]))[:5]], rtol=1e-12)
+    with pytest.raises(ConfigError, match="latitude"):
         TrackFunctions(load_bundled_track("urban-road", earth=WGS84))
+
+
+def test_extended_mode_on_mountain_railway_with_tactical_imu():
+    """WGS-84, a spline track with cant, a tactical IMU (biases, scale factors, quantization):
+    extended mode (bias states, step-mean inputs) stays within a few sigma through an outage."""
+    from navsim.episode import run_episode
+    from navsim.metrics import error_vector
+
+    sc = _scenario(60.0, (20.0, 40.0), earth="wgs84", track={"bundled": "mountain-railway"},
+                   imu={"preset": "tactical"})
+    est = PaperEkf(mode="extended", cov_step_s=0.1)
+    rec = run_episode(sc, est, seed=1)
+    e = error_vector(rec)
+    sig = np.sqrt(np.einsum("nii->ni", rec.est_cov))
+    assert est.n_states == 11 and not est.diverged
+    ratio = np.abs(e[:, [0, 1, 4, 8]]) / np.maximum(sig[:, [0, 1, 4, 8]], 1e-9)
+    assert np.percentile(ratio, 95) < 4.0
+    assert np.abs(e[-1, :2]).max() < 5.0  # m
 
 
 # ---------------------------------------------------------------------------- navsim paper 003
