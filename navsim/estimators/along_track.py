@@ -79,12 +79,17 @@ matrix invertible for NEES, small floors are added on the diagonal: ``position_f
 (1 mm), ``velocity_floor_mps`` (1 mm/s), ``attitude_floor_rad`` (1e-5 rad; raise it to
 the body oscillation amplitude when the scenario has one).
 
-Map table: at ``reset`` the track is sampled every ``table_step_m`` (5 m) metres and
-evaluated between nodes by cubic Hermite interpolation on values and analytic
-s-derivatives (ECEF position with the ECEF tangent as derivative, geodetic position,
-ENU tangent, heading, grade, cant, ``g_t``). The interpolation error is below 1e-6 m
-for curve radii above 300 m; one :func:`navsim.track.track_frame` call costs ~0.5 ms,
-the table ~1 us.
+Map table: at ``reset`` the track is sampled every ``table_step_m`` (5 m) metres (finer
+where it turns sharply, see :class:`TrackTable`) and evaluated between nodes by cubic
+Hermite interpolation on values and analytic s-derivatives (ECEF position with the ECEF
+tangent as derivative, geodetic position, ENU tangent, heading, grade, cant, ``g_t``).
+Measured against :func:`navsim.track.track_frame` at 3000 random points: mountain-railway
+3e-6 m in position, 8e-7 in the tangent, 1e-5 rad in cant (the design-cant ramps);
+urban-road (15-m corners, spacing refined to ~0.7 m) 3e-6 m and 3e-6. One
+``track_frame`` call costs ~0.5 ms, a table look-up ~1-2 us.
+
+Speed (paper-2012, 100 Hz, 1 Hz GNSS, ``step_batch``): ~5-9 us per step, under 1 s for
+the 1000-s episode; ``step`` ~0.2 ms per call.
 
 References
 ----------
@@ -116,6 +121,8 @@ _UPDATES = ("pseudorange", "fix")
 _CLOCKS = ("auto", "estimate", "none")
 TINY_CLOCK_BIAS_M = 1e-3
 TINY_CLOCK_DRIFT_MPS = 1e-4
+SIGMA_FLOOR_PR_M = 1e-3  # floors of the measurement sigmas (the "ideal" receiver has 0)
+SIGMA_FLOOR_RATE_MPS = 1e-4
 
 
 # ============================================================================ map table
@@ -126,17 +133,26 @@ class TrackTable:
     ----------
     track : navsim.track.Track
     step_m : float
-        Node spacing, m (the last interval is made equal by rescaling).
+        Node spacing, m (the last interval is made equal by rescaling). Where the track
+        turns (heading or grade) by more than ``MAX_TURN`` = 0.05 rad within one interval
+        the spacing is reduced for the whole table (not below 0.25 m): a 15-m street
+        corner gets ~0.7 m.
     """
 
     def __init__(self, track, step_m: float = 5.0):
         from ..track import track_frame
 
         self.length = float(track.length)
-        n = max(2, int(math.ceil(self.length / step_m)) + 1)
-        self.step = self.length / (n - 1)
-        s = np.linspace(0.0, self.length, n)
-        frame = track_frame(track, s)
+        for _ in range(2):
+            n = max(2, int(math.ceil(self.length / step_m)) + 1)
+            self.step = self.length / (n - 1)
+            s = np.linspace(0.0, self.length, n)
+            frame = track_frame(track, s)
+            # tight curves (streets): at most MAX_TURN rad of heading or grade per interval
+            turn = float(np.max(np.hypot(frame.curvature, frame.dpitch_ds))) * self.step
+            if turn <= self.MAX_TURN or step_m <= self.MIN_STEP:
+                break
+            step_m = max(self.MIN_STEP, step_m * self.MAX_TURN / turn)
         pos, d1, _ = track.geodetic(s)
         earth = track.earth
         self.earth = earth
@@ -162,6 +178,9 @@ class TrackTable:
         self._dg = (dg_t * self.step).tolist()
         self._inv = 1.0 / self.step
         self._n = n
+
+    MAX_TURN = 0.05  # rad per table interval (tangent error ~1e-5 there)
+    MIN_STEP = 0.25  # m
 
     # column blocks of values / derivs
     R_E, GEO, T_N, HEADING, PITCH, CANT, G_T = slice(0, 3), slice(3, 6), slice(6, 9), 9, 10, 11, 12
@@ -420,6 +439,9 @@ class AlongTrackFilter:
         if n_x == 5:
             P[3, 3], P[4, 4] = cb_sigma**2, cd_sigma**2
         self.x, self.P = x, P
+        # measurement sigmas with a floor (an error-free receiver must not make S singular)
+        self.sigma_pr = max(float(gnss.pseudorange_sigma_m), SIGMA_FLOOR_PR_M)
+        self.sigma_rate = max(float(gnss.doppler_sigma_mps), SIGMA_FLOOR_RATE_MPS)
         dt = context.nav_period_s
         period = opt.cov_period_s if opt.cov_period_s is not None else context.gnss_period_s
         self.cov_steps = max(1, int(round(period / dt)))
@@ -508,7 +530,7 @@ class AlongTrackFilter:
                 pred = pred + x[3]
             rows.append(H)
             ys.append(obs.pseudorange_m[use] - pred)  # (003 eq. 2) innovation
-            rs.append(np.full(m, gnss.pseudorange_sigma_m**2))
+            rs.append(np.full(m, self.sigma_pr**2))
             if opt.use_doppler:
                 Hd = np.zeros((m, self.n_x))
                 Hd[:, 0], Hd[:, 1] = drate_ds, drate_dv
@@ -518,7 +540,7 @@ class AlongTrackFilter:
                     pred_d = pred_d + x[4]
                 rows.append(Hd)
                 ys.append(obs.pseudorange_rate_mps[use] - pred_d)  # (003 eq. 3)
-                rs.append(np.full(m, gnss.doppler_sigma_mps**2))
+                rs.append(np.full(m, self.sigma_rate**2))
             H, y, R = np.vstack(rows), np.concatenate(ys), np.concatenate(rs)
         else:
             from ..sensors.gnss import least_squares_fix, velocity_fix
@@ -533,13 +555,13 @@ class AlongTrackFilter:
             t_e = t_e / np.linalg.norm(t_e)
             H = [np.eye(self.n_x)[0]]
             y = [s_fix - s]
-            R = [float(t_e @ fix.covariance[:3, :3] @ t_e) * gnss.pseudorange_sigma_m**2]
+            R = [float(t_e @ fix.covariance[:3, :3] @ t_e) * self.sigma_pr**2]
             if opt.use_doppler:
                 vfix = velocity_fix(obs.sat_pos_e, obs.sat_vel_e, obs.pseudorange_rate_mps, use, fix.position_e)
                 if vfix.ok:
                     H.append(np.eye(self.n_x)[1])
                     y.append(float(t_e @ vfix.velocity_e) - v)
-                    R.append(float(t_e @ vfix.covariance[:3, :3] @ t_e) * gnss.doppler_sigma_mps**2)
+                    R.append(float(t_e @ vfix.covariance[:3, :3] @ t_e) * self.sigma_rate**2)
             H, y, R = np.array(H), np.array(y), np.array(R)
         result = joseph_update(x, P, y, H, R)
         if result is None:

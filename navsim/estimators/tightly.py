@@ -112,6 +112,8 @@ __all__ = [
 CB, CD = 15, 16
 TINY_CLOCK_BIAS_M = 1e-3
 TINY_CLOCK_DRIFT_MPS = 1e-4
+SIGMA_FLOOR_PR_M = 1e-3  # floors of the measurement sigmas (the "ideal" receiver has 0)
+SIGMA_FLOOR_RATE_MPS = 1e-4
 
 
 # ============================================================================ observables
@@ -410,8 +412,9 @@ class _TightlyCoupled:
                                    coning=opt.coning, sculling=opt.sculling, position=opt.position,
                                    estimate_biases=opt.estimate_biases)
         self.earth = context.earth
-        self.sigma_pr = float(gnss.pseudorange_sigma_m)
-        self.sigma_rate = float(gnss.doppler_sigma_mps)
+        # measurement sigmas with a floor (an error-free receiver must not make S singular)
+        self.sigma_pr = max(float(gnss.pseudorange_sigma_m), SIGMA_FLOOR_PR_M)
+        self.sigma_rate = max(float(gnss.doppler_sigma_mps), SIGMA_FLOOR_RATE_MPS)
         self.diverged = False
         self._bad = 0
         self.cholesky_fallbacks = 0
