@@ -332,8 +332,14 @@ class AlongTrackOptions:
     attitude_floor_rad: float = 1e-5
     nis_divergence: float = 50.0
     divergence_epochs: int = 10
+    pseudorange_sigma_m: float | None = None
+    doppler_sigma_mps: float | None = None
 
     def __post_init__(self):
+        for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
+                raise ConfigError(f"along-track.{name}", "None or a positive finite sigma", value)
         if self.update not in _UPDATES:
             raise ConfigError("along-track.update", f"one of {_UPDATES}", self.update)
         if self.clock not in _CLOCKS:
@@ -382,6 +388,9 @@ class AlongTrackFilter:
     nis_divergence, divergence_epochs : float, int
         ``extra["diverged"]`` turns True when NIS / dof exceeds ``nis_divergence`` at
         that many consecutive epochs, or when the covariance stops being finite.
+    pseudorange_sigma_m, doppler_sigma_mps : float, optional
+        Measurement sigmas assumed instead of the context's nominal ones (tuning, e.g.
+        for unmodelled atmospheric delays). Floors: 1 mm and 0.1 mm/s.
 
     The model, discretisation and measurement equations are in the module docstring.
     """
@@ -440,8 +449,10 @@ class AlongTrackFilter:
             P[3, 3], P[4, 4] = cb_sigma**2, cd_sigma**2
         self.x, self.P = x, P
         # measurement sigmas with a floor (an error-free receiver must not make S singular)
-        self.sigma_pr = max(float(gnss.pseudorange_sigma_m), SIGMA_FLOOR_PR_M)
-        self.sigma_rate = max(float(gnss.doppler_sigma_mps), SIGMA_FLOOR_RATE_MPS)
+        sigma_pr = opt.pseudorange_sigma_m if opt.pseudorange_sigma_m is not None else gnss.pseudorange_sigma_m
+        sigma_rate = opt.doppler_sigma_mps if opt.doppler_sigma_mps is not None else gnss.doppler_sigma_mps
+        self.sigma_pr = max(float(sigma_pr), SIGMA_FLOOR_PR_M)
+        self.sigma_rate = max(float(sigma_rate), SIGMA_FLOOR_RATE_MPS)
         dt = context.nav_period_s
         period = opt.cov_period_s if opt.cov_period_s is not None else context.gnss_period_s
         self.cov_steps = max(1, int(round(period / dt)))

@@ -372,8 +372,14 @@ class TightlyCoupledOptions:
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
+    pseudorange_sigma_m: float | None = None
+    doppler_sigma_mps: float | None = None
 
     def __post_init__(self):
+        for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
+                raise ConfigError(f"tightly.{name}", "None or a positive finite sigma", value)
         if self.clock not in ("auto", "none"):
             raise ConfigError("tightly.clock", "'auto' or 'none'", self.clock)
         for name in ("covariance_period_s", "noise_scale", "bias_scale", "nis_divergence", "alpha"):
@@ -413,8 +419,10 @@ class _TightlyCoupled:
                                    estimate_biases=opt.estimate_biases)
         self.earth = context.earth
         # measurement sigmas with a floor (an error-free receiver must not make S singular)
-        self.sigma_pr = max(float(gnss.pseudorange_sigma_m), SIGMA_FLOOR_PR_M)
-        self.sigma_rate = max(float(gnss.doppler_sigma_mps), SIGMA_FLOOR_RATE_MPS)
+        sigma_pr = opt.pseudorange_sigma_m if opt.pseudorange_sigma_m is not None else gnss.pseudorange_sigma_m
+        sigma_rate = opt.doppler_sigma_mps if opt.doppler_sigma_mps is not None else gnss.doppler_sigma_mps
+        self.sigma_pr = max(float(sigma_pr), SIGMA_FLOOR_PR_M)
+        self.sigma_rate = max(float(sigma_rate), SIGMA_FLOOR_RATE_MPS)
         self.diverged = False
         self._bad = 0
         self.cholesky_fallbacks = 0
@@ -534,6 +542,9 @@ class TightlyCoupledEkf(_TightlyCoupled):
         Strapdown methods (None: the most accurate the data allow).
     nis_divergence, divergence_epochs : float, int
         Divergence flag settings.
+    pseudorange_sigma_m, doppler_sigma_mps : float, optional
+        Measurement sigmas assumed instead of the context's nominal ones (tuning, e.g.
+        for unmodelled atmospheric delays). Floors: 1 mm and 0.1 mm/s.
 
     See the module docstring for the model and equations.
     """

@@ -50,6 +50,8 @@ def test_registry_builds_it():
         make("along-track", update="magic")
     with pytest.raises(ConfigError):
         AlongTrackFilter(table_step_m=-1.0)
+    with pytest.raises(ConfigError):
+        AlongTrackFilter(doppler_sigma_mps=0.0)
 
 
 def test_table_matches_track_frame():

@@ -67,6 +67,8 @@ def test_registry_and_options():
         make("tc-ekf", clock="sometimes")
     with pytest.raises(ConfigError):
         TightlyCoupledUkf(alpha=-1.0)
+    with pytest.raises(ConfigError):
+        make("tc-ekf", pseudorange_sigma_m=-1.0)
 
 
 # ------------------------------------------------------------------------ Jacobians
