@@ -92,7 +92,24 @@ from ..earth import WGS84, EarthModel
 from ..errors import ConfigError
 from ..rotations import quat_from_rotvec
 
-__all__ = ["InsState", "InsSolution", "ins_step", "integrate", "resolve_methods"]
+__all__ = [
+    "AUTO_SCAN_MIN_STEPS",
+    "BodyTerms",
+    "InsSolution",
+    "InsState",
+    "METHODS",
+    "body_terms",
+    "ins_step",
+    "integrate",
+    "integrate_body_terms",
+    "resolve_methods",
+]
+
+METHODS = ("auto", "sequential", "scan")
+"""Integration methods of :func:`integrate` and :func:`integrate_body_terms`."""
+
+AUTO_SCAN_MIN_STEPS = 4096
+"""``method="auto"`` uses the scan integrator from this many steps on, the loop below."""
 
 _N_FRAME_RULES = ("rectangle", "trapezoid")
 # preference order of the automatic choice (most accurate first)
@@ -285,8 +302,55 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position):
-    """Vectorised body-frame terms for all steps: q(Phi) (n, 4), dV_b (n, 3), dS_b or None."""
+@dataclass(frozen=True, slots=True)
+class BodyTerms:
+    """Body-frame strapdown terms of n navigation steps (independent of the navigation state).
+
+    Attributes
+    ----------
+    rotvec_body : ndarray, shape (n, 3)
+        ``Phi``, the body rotation vector over each step (coning algorithm), rad.
+    dv_body : ndarray, shape (n, 3)
+        ``dV_b``: DeltaV + deltaV_s (sculling algorithm) + the second-order rotation term
+        ``Phi x (Phi x DeltaV) / 6``, body axes at t_k, m/s.
+    ds_body : ndarray, shape (n, 3) or None
+        ``dS_b``: the body-frame double integral of the exact position forms
+        (DeltaV^2 + deltaS_s + ``dt Phi x (Phi x DeltaV) / 24``), m; None for the
+        "rectangle" and "trapezoid" rules.
+    rule : {"rectangle", "trapezoid", None}
+        The n-frame position rule, or None for the exact forms.
+    dtheta_first, dv_first : ndarray, shape (n, 3)
+        The first-order increments DeltaTheta, DeltaV over each step (rad, m/s).
+    """
+
+    rotvec_body: np.ndarray
+    dv_body: np.ndarray
+    ds_body: np.ndarray | None
+    rule: str | None
+    dtheta_first: np.ndarray
+    dv_first: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.rotvec_body)
+
+    @property
+    def quat_body(self) -> np.ndarray:
+        """``q(Phi)``, shape (n, 4), the input of :func:`integrate_body_terms`."""
+        return quat_from_rotvec(self.rotvec_body)
+
+
+def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float = 0.01, coning: Method = None,
+               sculling: Method = None, position: Method = None) -> BodyTerms:
+    """The body-frame terms :func:`integrate` uses, for all n steps at once.
+
+    Parameters are those of :func:`integrate` (increment arrays of shape (n, m, 3) or
+    (n, R, 3), methods by name, callable or None for :func:`resolve_methods`).
+    ``integrate(state, ...)`` equals
+    ``integrate_body_terms(state, t.quat_body, t.dv_body, t.ds_body, t.rule, dt, earth)``
+    with ``t = body_terms(...)``. Estimators that correct the terms (bias removal to
+    first order, see navsim.estimators._inserror) start from the rotation vector and the
+    first-order increments returned here.
+    """
     coning, sculling, position = resolve_methods(coning, sculling, position, dtheta_sub, dv_sub, dtheta_r, dv_r)
     phi = np.asarray(_lookup("coning", coning)(dtheta_sub, dtheta_r, dt), dtype=float)
     dv_b = np.asarray(_lookup("sculling", sculling)(dtheta_sub, dv_sub, dtheta_r, dv_r, dt), dtype=float)
@@ -303,16 +367,23 @@ def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, positi
     # second-order rotation terms that (1.6)-(1.8) and (5.3)-(5.4) neglect:
     # 1/2 int DeltaTheta x (DeltaTheta x a) dt = 1/6 Phi x (Phi x DV) for constant omega, a,
     # and its double integral 1/24 dt Phi x (Phi x DV)
+    dth_raw = np.sum(dtheta_sub, axis=1) if dtheta_sub is not None else np.asarray(dtheta_r, dtype=float)[:, 0]
     dv_raw = np.sum(dv_sub, axis=1) if dv_sub is not None else np.asarray(dv_r, dtype=float)[:, 0]
     second = _cross(phi, _cross(phi, dv_raw))
     dv_b = dv_b + second / 6.0
     if ds_b is not None:
         ds_b = ds_b + (dt / 24.0) * second
-    return quat_from_rotvec(phi), dv_b, ds_b, rule
+    return BodyTerms(phi, dv_b, ds_b, rule, np.asarray(dth_raw, dtype=float), np.asarray(dv_raw, dtype=float))
+
+
+def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position):
+    """Vectorised body-frame terms for all steps: q(Phi) (n, 4), dV_b (n, 3), dS_b or None, rule."""
+    terms = body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position)
+    return terms.quat_body, terms.dv_body, terms.ds_body, terms.rule
 
 
 # ------------------------------------------------------------------------------ the loop
-def _run(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
+def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
     """Sequential predictor-corrector loop on Python floats (see the module notes)."""
     sin, cos, sqrt = math.sin, math.cos, math.sqrt
     a, e2, rate, f = earth.a, earth.e2, earth.rate, earth.f
@@ -444,6 +515,84 @@ def _run(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: flo
     return InsSolution(pos[:, 0], pos[:, 1], pos[:, 2], np.array(out_vel), np.array(out_q), (k_lat, k_lon, k_h))
 
 
+# kept for callers of the former private name (navsim.estimators._inserror); use
+# integrate_body_terms(..., method="sequential")
+_run = _run_sequential
+
+
+def _check_method(method: str, window) -> None:
+    if method not in METHODS:
+        raise ConfigError("method", f"one of {METHODS}", method)
+    if window is not None and (isinstance(window, bool) or int(window) != window or window < 1):
+        raise ConfigError("window", "a positive whole number of steps", window)
+
+
+def integrate_body_terms(
+    initial_state: InsState,
+    quat_body,
+    dv_body,
+    ds_body=None,
+    rule: str | None = None,
+    dt: float = 0.01,
+    earth: EarthModel = WGS84,
+    method: str = "auto",
+    window: int | None = None,
+) -> InsSolution:
+    """Free-inertial navigation from precomputed body-frame terms (see :func:`body_terms`).
+
+    Parameters
+    ----------
+    initial_state : InsState
+    quat_body : array_like, shape (n, 4)
+        ``q(Phi_k)``, body rotation over each step (scalar first).
+    dv_body : array_like, shape (n, 3)
+        Velocity increments in body axes at t_k, m/s.
+    ds_body : array_like, shape (n, 3), optional
+        Body-frame double integrals, m, for the exact position forms (``rule=None``).
+    rule : {"rectangle", "trapezoid", None}
+        Position rule; None requires ``ds_body``.
+    dt : float
+        Navigation step, s.
+    earth : EarthModel
+    method : {"auto", "sequential", "scan"}
+        "sequential": the per-step loop (module notes). "scan": the loop-free window
+        fixed point of :mod:`navsim.strapdown.scan` (same solution to rounding, several
+        times faster for long runs). "auto": "scan" for n >= AUTO_SCAN_MIN_STEPS steps.
+    window : int, optional
+        Steps per scan window (default :data:`navsim.strapdown.scan.DEFAULT_WINDOW`).
+
+    Returns
+    -------
+    InsSolution
+        n + 1 rows.
+    """
+    _check_method(method, window)
+    dt = float(dt)
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise ConfigError("dt", "a positive finite step in seconds", dt)
+    quat_body = np.asarray(quat_body, dtype=float)
+    dv_body = np.asarray(dv_body, dtype=float)
+    n = len(dv_body)
+    if quat_body.shape != (n, 4) or dv_body.shape != (n, 3):
+        raise ConfigError("quat_body/dv_body", "arrays of shapes (n, 4) and (n, 3)", (quat_body.shape, dv_body.shape))
+    if rule not in (None, *_N_FRAME_RULES):
+        raise ConfigError("rule", f"None or one of {_N_FRAME_RULES}", rule)
+    if rule is None:
+        if ds_body is None:
+            raise ConfigError("ds_body", "an (n, 3) array when rule is None (exact position forms)", None)
+        ds_body = np.asarray(ds_body, dtype=float)
+        if ds_body.shape != (n, 3):
+            raise ConfigError("ds_body", "an array of shape (n, 3)", ds_body.shape)
+    else:
+        ds_body = None
+    if method == "scan" or (method == "auto" and n >= AUTO_SCAN_MIN_STEPS):
+        from .scan import DEFAULT_WINDOW, integrate_scan
+
+        return integrate_scan(initial_state, quat_body, dv_body, ds_body, rule, dt, earth,
+                              window=DEFAULT_WINDOW if window is None else int(window))
+    return _run_sequential(initial_state, quat_body, dv_body, ds_body, rule, dt, earth)
+
+
 def integrate(
     initial_state: InsState,
     dtheta_sub=None,
@@ -455,6 +604,8 @@ def integrate(
     coning: Method = None,
     sculling: Method = None,
     position: Method = None,
+    method: str = "auto",
+    window: int | None = None,
 ) -> InsSolution:
     """Free-inertial navigation over n steps from ideal or measured increments.
 
@@ -476,6 +627,16 @@ def integrate(
         accurate method the inputs allow (:func:`resolve_methods`). Position rules
         "rectangle" and "trapezoid" act on the ENU velocities; the other names supply
         the body-frame double integral of the exact form (5.2).
+    method : {"auto", "sequential", "scan"}
+        "sequential": the per-step predictor-corrector loop of the module notes.
+        "scan": the same discrete equations solved without a per-step loop
+        (:mod:`navsim.strapdown.scan`: parallel prefix products for the body rotations,
+        a fixed-point iteration per window for the navigation-frame terms); the same
+        solution up to rounding and 4-8 times faster on long runs (benchmarks/bench_ins.py).
+        "auto" (default): "scan" from :data:`AUTO_SCAN_MIN_STEPS` steps on, else
+        "sequential" (so short runs, :func:`ins_step` and stepped use are bit-for-bit the loop).
+    window : int, optional
+        Steps per scan window (default :data:`navsim.strapdown.scan.DEFAULT_WINDOW`).
 
     Returns
     -------
@@ -484,8 +645,14 @@ def integrate(
 
     Notes
     -----
-    Integrating n1 steps, then n2 steps from the final state, gives exactly the numbers
-    of n1 + n2 steps at once (the registered methods use only the current step's data).
+    Chunking. With ``method="sequential"``, integrating n1 steps, then n2 steps from the
+    final state, gives exactly the numbers of n1 + n2 steps at once (the registered
+    methods use only the current step's data). With ``method="scan"`` this holds when n1
+    is a multiple of the window; elsewhere the two differ at the rounding level (measured
+    in tests/strapdown/test_ins_scan.py), as do "scan" and "sequential". "auto" chooses per
+    call, so chunks of different sizes may use different methods: rounding-level
+    differences again. Pass an explicit method where bitwise reproducibility across
+    chunkings matters.
     """
     dt = float(dt)
     if not (dt > 0.0 and math.isfinite(dt)):
@@ -502,8 +669,9 @@ def integrate(
     n = present[0].shape[0]
     if any(x.shape[0] != n for x in present):
         raise ConfigError("increments", "arrays with the same number of steps n", [x.shape for x in present])
+    _check_method(method, window)
     quat_body, dv_body, ds_body, rule = _body_terms(*arrays, dt, coning, sculling, position)
-    return _run(initial_state, quat_body, dv_body, ds_body, rule, dt, earth)
+    return integrate_body_terms(initial_state, quat_body, dv_body, ds_body, rule, dt, earth, method, window)
 
 
 def ins_step(
