@@ -212,7 +212,14 @@ from navsim.fmu.fmi{fmi} import {cls} as Fmi{fmi}Slave
 
 class {identifier}(Fmi{fmi}Slave):
     """navsim {kind} (see navsim.fmu.runtime)."""
-'''
+{extra}'''
+
+_FMI2_PIN = """
+
+from navsim.fmu.fmi2 import pin_module_dict
+
+pin_module_dict(globals())  # balances pythonfmu 0.7's loader (see pin_module_dict)
+"""
 
 
 def _embed_scenario(scenario, resources: dict[str, bytes]):
@@ -289,7 +296,8 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     resources[META_FILE] = json.dumps(meta, indent=1).encode()
     resources["slavemodule.txt"] = module.encode()
     cls = "PlantSlave" if what == "plant" else "EstimatorSlave"
-    resources[f"{module}.py"] = _SLAVE_SCRIPT.format(kind=what, fmi=fmi, cls=cls, identifier=identifier).encode()
+    resources[f"{module}.py"] = _SLAVE_SCRIPT.format(kind=what, fmi=fmi, cls=cls, identifier=identifier,
+                                                              extra=_FMI2_PIN if fmi == 2 else "").encode()
     shim_dir = Path(shim.__file__).parent
     package = "pythonfmu" if fmi == 2 else "pythonfmu3"
     output = Path(output or f"{scenario.name}-{what}-fmi{fmi}.fmu")

@@ -21,9 +21,50 @@ from pythonfmu.enums import Fmi2Status
 
 from .runtime import EstimatorRuntime, FmuError, PlantRuntime
 
-__all__ = ["PlantSlave", "EstimatorSlave"]
+__all__ = ["PlantSlave", "EstimatorSlave", "pin_module_dict"]
+
+_PINNED: list = []
+
+
+def pin_module_dict(namespace: dict) -> None:
+    """Keep one reference to the slave script's module dict per execution of the script.
+
+    pythonfmu 0.7's loader (``findClass`` in its C++ shim) re-executes the slave script
+    with the module's ``__dict__`` as globals at every ``fmi2Instantiate`` and then calls
+    ``Py_DECREF`` on that borrowed reference, so each instantiation drops one reference
+    it never owned; after a few instantiations in one process the dict is freed and the
+    next one fails with "module has no attribute 'NavsimPlant'". The generated script
+    calls this at module level, which balances the count (8 bytes per instantiation).
+    """
+    _PINNED.append(namespace)
 
 _LEVEL = {"info": Fmi2Status.ok, "warning": Fmi2Status.warning, "error": Fmi2Status.error}
+
+
+# Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
+# exception into a Fatal status and, in doing so, releases its references to the slave
+# class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
+# freeing the instance releases them a second time. One extra reference per object is
+# kept here when an instance fails (a small, bounded leak per failed instance), and a
+# failed instance never raises again: later calls log, return zeros or refuse the step.
+_FAILED: list = []
+
+
+def _mark_failed(slave) -> None:
+    if not slave._failed:
+        slave._failed = True
+        _FAILED.append((slave, type(slave), slave.log_queue))
+        rt = getattr(slave, "rt", None)
+        if rt is not None:  # drop the simulator / estimator of a dead instance
+            rt.sim = rt.estimator = None
+
+
+def _zeros(slave, vrs, type_):
+    zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+    try:
+        return [zero] * len(slave.rt.store.get(vrs, type_))
+    except Exception:
+        return [zero] * len(vrs)
 
 
 class _Slave(Fmi2Slave):
@@ -31,23 +72,30 @@ class _Slave(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._failed = False
         self.rt = self.runtime_class(self.resources, 2, self._log)
 
     def _log(self, message: str, level: str = "info") -> None:
         self.log(message, _LEVEL[level])
 
-    def _fail(self, message: str, status=Fmi2Status.error) -> None:
-        self.log(message, status)
+    def _fail(self, message: str) -> None:
+        self.log(message, Fmi2Status.error)
+        _mark_failed(self)
         raise FmuError(message)
 
     # -- life cycle ------------------------------------------------------------------------
     def exit_initialization_mode(self):
+        if self._failed:
+            return
         try:
             self.rt.exit_initialization_mode()
         except FmuError as exc:
             self._fail(str(exc))
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._failed:
+            self.log("doStep refused: the instance failed earlier (see the log); free it", Fmi2Status.error)
+            return False
         try:
             self.rt.do_step(current_time, step_size)
         except FmuError as exc:
@@ -59,16 +107,21 @@ class _Slave(Fmi2Slave):
         return True
 
     def terminate(self):
-        self.rt.terminate()
+        if not self._failed:
+            self.rt.terminate()
 
     # -- values ------------------------------------------------------------------------------
     def _get(self, vrs, type_):
+        if self._failed:
+            return _zeros(self, vrs, type_)
         try:
             return self.rt.store.get(vrs, type_)
         except FmuError as exc:
             self._fail(str(exc))
 
     def _set(self, vrs, values, type_):
+        if self._failed:
+            return
         try:
             self.rt.store.set(vrs, values, type_, self.rt.settable())
         except FmuError as exc:

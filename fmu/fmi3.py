@@ -20,11 +20,38 @@ __all__ = ["PlantSlave", "EstimatorSlave"]
 _LEVEL = {"info": Fmi3Status.ok, "warning": Fmi3Status.warning, "error": Fmi3Status.error}
 
 
+# Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
+# exception into a Fatal status and, in doing so, releases its references to the slave
+# class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
+# freeing the instance releases them a second time. One extra reference per object is
+# kept here when an instance fails (a small, bounded leak per failed instance), and a
+# failed instance never raises again: later calls log, return zeros or refuse the step.
+_FAILED: list = []
+
+
+def _mark_failed(slave) -> None:
+    if not slave._failed:
+        slave._failed = True
+        _FAILED.append((slave, type(slave), slave.log_queue))
+        rt = getattr(slave, "rt", None)
+        if rt is not None:  # drop the simulator / estimator of a dead instance
+            rt.sim = rt.estimator = None
+
+
+def _zeros(slave, vrs, type_):
+    zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+    try:
+        return [zero] * len(slave.rt.store.get(vrs, type_))
+    except Exception:
+        return [zero] * len(vrs)
+
+
 class _Slave(Fmi3Slave):
     runtime_class = None
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._failed = False
         self.rt = self.runtime_class(self.resources, 3, self._log)
         self.time = 0.0
 
@@ -33,15 +60,21 @@ class _Slave(Fmi3Slave):
 
     def _fail(self, message: str) -> None:
         self.log(message, Fmi3Status.error)
+        _mark_failed(self)
         raise FmuError(message)
 
     def exit_initialization_mode(self):
+        if self._failed:
+            return
         try:
             self.rt.exit_initialization_mode()
         except FmuError as exc:
             self._fail(str(exc))
 
     def do_step(self, current_time: float, step_size: float):
+        if self._failed:
+            self.log("doStep refused: the instance failed earlier (see the log); free it", Fmi3Status.error)
+            return Fmi3StepResult(status=Fmi3Status.error)
         try:
             self.rt.do_step(current_time, step_size)
         except FmuError as exc:
@@ -55,15 +88,20 @@ class _Slave(Fmi3Slave):
         return Fmi3StepResult()
 
     def terminate(self):
-        self.rt.terminate()
+        if not self._failed:
+            self.rt.terminate()
 
     def _get(self, vrs, type_):
+        if self._failed:
+            return _zeros(self, vrs, type_)
         try:
             return self.rt.store.get(vrs, type_)
         except FmuError as exc:
             self._fail(str(exc))
 
     def _set(self, vrs, values, type_):
+        if self._failed:
+            return
         try:
             self.rt.store.set(vrs, values, type_, self.rt.settable())
         except FmuError as exc:

@@ -52,14 +52,15 @@ class FmuInstance:
     ----------
     path : the ``.fmu`` file (or an extracted folder).
     name : instance name.
-    debug_logging : pass ``loggingOn`` to the FMU.
+    debug_logging : pass ``loggingOn`` to the FMU (pythonfmu 0.7 forwards log messages,
+        errors included, only when it is on).
 
     Attributes
     ----------
     fmi : 2 or 3. variables : name -> fmpy ModelVariable. log : list of (status, message).
     """
 
-    def __init__(self, path: str | Path, name: str = "instance", debug_logging: bool = False):
+    def __init__(self, path: str | Path, name: str = "instance", debug_logging: bool = True):
         _fmpy()
         from fmpy import extract, read_model_description
 
@@ -83,6 +84,8 @@ class FmuInstance:
         if self.fmi == 2:
             from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                                    fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+            from ctypes import byref
+
             from fmpy.fmi1 import calloc, free
 
             self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir, modelIdentifier=identifier,
@@ -94,26 +97,34 @@ class FmuInstance:
             try:
                 from fmpy.logging import addLoggerProxy
 
-                addLoggerProxy(callbacks)
+                addLoggerProxy(byref(callbacks))
             except Exception:  # pragma: no cover - the proxy only formats printf arguments
                 pass
             self._callbacks = callbacks
-            self.fmu.instantiate(callbacks=callbacks, loggingOn=debug_logging)
+            try:
+                self.fmu.instantiate(callbacks=callbacks, loggingOn=debug_logging)
+            except Exception:
+                raise FmuCallError(f"{self.name}: instantiate failed: {'; '.join(m for _, m in self.log)}") from None
         else:
             from fmpy.fmi3 import FMU3Slave
 
             self.fmu = FMU3Slave(guid=self.md.instantiationToken, unzipDirectory=self.unzipdir,
                                  modelIdentifier=identifier, instanceName=self.name)
-            self.fmu.instantiate(loggingOn=debug_logging,
-                                 logMessage=lambda env, status, cat, msg: keep(status, msg))
+            self._logger = lambda env, status, cat, msg: keep(status, msg)
+            try:
+                self.fmu.instantiate(loggingOn=debug_logging, logMessage=self._logger)
+            except Exception:
+                raise FmuCallError(f"{self.name}: instantiate failed: {'; '.join(m for _, m in self.log)}") from None
 
     def _call(self, what: str, fn, *args):
+        seen = len(self.log)
         try:
             return fn(*args)
         except Exception as exc:
             status = getattr(exc, "status", None)
-            messages = "; ".join(m for _, m in self.log[-3:])
-            raise FmuCallError(f"{self.name}: {what} failed (status {status}): {messages}") from exc
+            label = {2: "discard", 3: "error", 4: "fatal"}.get(status, type(exc).__name__)
+            messages = "; ".join(m for _, m in self.log[seen:]) or str(exc)
+            raise FmuCallError(f"{self.name}: {what} failed ({label}): {messages}") from exc
 
     def initialize(self, parameters: dict | None = None, start_time: float = 0.0, stop_time: float | None = None):
         """Set parameters and pass through initialisation mode."""
@@ -179,7 +190,7 @@ class FmuInstance:
 
     def set_raw(self, type_: str, vrs: list[int], values: list) -> None:
         if type_ == "string":
-            values = [v.encode() if isinstance(v, str) else v for v in values]
+            values = [v.decode() if isinstance(v, bytes) else str(v) for v in values]
         self._call("set", self._setter(type_), vrs, values)
 
     def get(self, names) -> dict:
