@@ -88,8 +88,10 @@ Measured against :func:`navsim.track.track_frame` at 3000 random points: mountai
 urban-road (15-m corners, spacing refined to ~0.7 m) 3e-6 m and 3e-6. One
 ``track_frame`` call costs ~0.5 ms, a table look-up ~1-2 us.
 
-Speed (paper-2012, 100 Hz, 1 Hz GNSS, ``step_batch``): ~5-9 us per step, under 1 s for
-the 1000-s episode; ``step`` ~0.2 ms per call.
+Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, ``step_batch``): ~9 us per step
+(15 us on the loaded shared machine), 0.9-1.5 s for the 1000-s episode; the "fix" mode
+adds ~12 us per step (the least-squares fix and the projection at each epoch);
+``step`` costs ~0.2-0.5 ms per call.
 
 References
 ----------
@@ -228,7 +230,8 @@ class TrackTable:
         u = x - i
         v = 1.0 - u
         g, d = self._g, self._dg
-        return (1 + 2 * u) * v * v * g[i] + u * v * v * d[i] + u * u * (3 - 2 * u) * g[i + 1] + u * u * (u - 1) * d[i + 1]
+        return ((1 + 2 * u) * v * v * g[i] + u * v * v * d[i]
+                + u * u * (3 - 2 * u) * g[i + 1] + u * u * (u - 1) * d[i + 1])
 
     def project(self, r_e: np.ndarray, s0: float | None = None, iterations: int = 4) -> float:
         """Arc length of the track point nearest to ECEF point r_e (m).

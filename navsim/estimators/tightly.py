@@ -65,7 +65,8 @@ INS runs over all the steps between epochs in one sequential pass in ``step_batc
 
 Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, one core of the development
 machine): EKF ~35 us per step, UKF ~37 us per step, i.e. ~3.5-3.7 s for the 1000-s
-episode, of which the strapdown loop is ~20 us per step. (Anchors from the research
+episode (38-42 us on the loaded shared machine, where the INS alone took 26 us), of
+which the strapdown loop is ~20 us per step. (Anchors from the research
 notes: filterpy EKF 32-47 us, UKF 250-400 us per step.) ``step`` alone costs ~1 ms per
 call (per-call strapdown set-up); use ``step_batch``.
 

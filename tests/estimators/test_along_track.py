@@ -202,11 +202,12 @@ def test_one_satellite_is_enough_on_the_map():
 
 def test_clock_states_with_the_standalone_receiver():
     sc = _scenario(60.0, gnss={"preset": "standalone"})
-    rec = run_episode(sc, AlongTrackFilter(), seed=1)
-    est_extra_ok = True
+    est = AlongTrackFilter()
+    rec = run_episode(sc, est, seed=1)
+    assert est.n_x == 5
     ds = _along_errors(rec)[0]
     assert np.max(np.abs(ds[1000:])) < 10.0  # m: clock (3 km bias) solved through the map
-    assert est_extra_ok
+    assert abs(est.last_extra["clock_bias_m"]) > 2000.0  # the ~3 km bias was picked up
 
 
 def _nees_run(seeds, duration, outage):
