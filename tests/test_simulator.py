@@ -108,11 +108,11 @@ def test_external_motion_reproduces_a_scripted_profile():
     external = scripted.with_overrides({"motion": {"profile": "external", "start_s_m": 100.0, "speed_mps": 0.0}})
     ref = Simulator(scripted)
     ref.reset(1)
-    expected = ref.advance(2000)
+    expected = ref.advance(600)
     sim = Simulator(external)
     sim.reset(1)
     chunks = []
-    for k in range(2000):
+    for k in range(600):
         t_end = (k + 1) * external.timing.nav_period_s
         s, v, a = tt.evaluate(np.array([t_end]))
         sim.push_motion(float(s[0]), float(v[0]), float(a[0]))
