@@ -158,22 +158,42 @@ class EpisodeTape:
         self.cov: dict[int, np.ndarray] = {}
         self.nis: dict[int, tuple[float, int]] = {}
         self.cpu: dict[int, float] = {}
+        self.cov_array: np.ndarray | None = None
+        self.nis_array: np.ndarray | None = None
+        self.nis_dof_array: np.ndarray | None = None
         self.gnss_t: list = []
         self.gnss_n_valid: list = []
         self.gnss_outage: list = []
 
-    def add_chunk(self, prepared: PreparedChunk) -> None:
-        """Copy a chunk's truth and GNSS availability into the tape."""
-        k = slice(prepared.step0, prepared.step0 + prepared.n)
-        tr = prepared.chunk.truth
+    def add_chunk(self, prepared) -> None:
+        """Copy the truth and GNSS availability of a chunk (a PreparedChunk or a
+        simulator Chunk) into the tape."""
+        chunk = getattr(prepared, "chunk", prepared)
+        k = slice(chunk.step0, chunk.step0 + len(chunk))
+        tr = chunk.truth
         self.s[k], self.lat[k], self.lon[k], self.h[k] = tr.s, tr.lat, tr.lon, tr.h
         self.velocity_n[k] = tr.velocity_n
         self.hpr[k, 0], self.hpr[k, 1], self.hpr[k, 2] = tr.heading, tr.pitch, tr.roll
-        g = prepared.chunk.gnss
+        g = chunk.gnss
         if g is not None:
             self.gnss_t.append(g.t)
             self.gnss_n_valid.append(g.valid.sum(axis=1))
-            self.gnss_outage.append(prepared.chunk.receiver_outage)
+            self.gnss_outage.append(chunk.receiver_outage)
+
+    def add_estimates(self, step0: int, out) -> None:
+        """Record an :class:`~navsim.estimators.base.EstimateBatch` of steps from ``step0``
+        (solutions in physical units, covariance, NIS)."""
+        n = len(out.solution)
+        self.actions.extend(out.solution.tolist())
+        if out.covariance is not None:
+            if self.cov_array is None:
+                self.cov_array = np.full((self.n, 9, 9), np.nan)
+            self.cov_array[step0:step0 + n] = out.covariance
+        if self.nis_array is None:
+            self.nis_array = np.full(self.n, np.nan)
+            self.nis_dof_array = np.zeros(self.n, dtype=int)
+        self.nis_array[step0:step0 + n] = out.nis
+        self.nis_dof_array[step0:step0 + n] = out.nis_dof
 
     def estimates(self, scale=None) -> np.ndarray:
         """(n, 9) solutions so far (actions times ``scale``), nan-padded to the episode length."""
@@ -188,13 +208,15 @@ class EpisodeTape:
 
         n = self.n
         est = self.estimates(scale)
-        cov = None
+        cov = self.cov_array
         if self.cov:
             cov = np.full((n, 9, 9), np.nan)
             for k, c in self.cov.items():
                 cov[k] = c
         nis = np.full(n, np.nan)
         nis_dof = np.zeros(n, dtype=int)
+        if self.nis_array is not None:
+            nis, nis_dof = self.nis_array, self.nis_dof_array
         for k, (value, dof) in self.nis.items():
             nis[k], nis_dof[k] = value, dof
         cpu = np.full(n, np.nan)

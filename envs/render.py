@@ -123,7 +123,7 @@ class TrackRenderer:
                 _dots(img, *self._px(*self._en(tape.lat[out], tape.lon[out])), _ORANGE, 2)
         tx, ty = self._px(*self._en(tape.lat[idx], tape.lon[idx]))
         _polyline(img, tx, ty, _GREEN)
-        est = np.asarray(tape.actions[: n], dtype=float)
+        est = np.asarray(tape.actions[: n], dtype=float) * env.action_scale  # actions are normalised
         fin = np.all(np.isfinite(est[:, :2]), axis=1)
         ex, ey = self._px(*self._en(est[idx, 0], est[idx, 1]))
         ok = fin[idx]

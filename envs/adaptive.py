@@ -1,0 +1,304 @@
+"""Adaptive filtering: the agent scales the noise of an attached estimator.
+
+## Description
+The setting of RL-tuned Kalman filters: a bundled estimator runs on the scenario's
+sensor data; every ``decision_period_s`` (default one GNSS period) the agent chooses
+two factors, on the process-noise PSDs (Q) and on the measurement-noise variances (R) of
+the estimator, which then runs the next interval with them (one ``step_batch`` call).
+The reward is minus the estimator's mean position error over the interval, so an agent
+can learn to inflate Q through an outage, distrust GNSS in a canyon, and so on. The env
+owns no physics: the simulator makes the data, the estimator filters it.
+
+## Action space
+``Box(-1, 1, (2,))``: ``q_scale = max_scale ** a[0]``, ``r_scale = max_scale ** a[1]``
+(default ``max_scale = 10``: factors 0.1..10); ``a = (0, 0)`` is the untuned filter.
+
+## Observation space
+``Box(9,)`` float32, what the filter itself knows (never truth): log10 of its horizontal
+and vertical position sigma (m, clipped to [-3, 6]); log10(1 + NIS/dof) of its last
+update (0 without one); the fraction of valid channels at the last epoch; the fraction
+of the interval's epochs with at least 4 valid channels; the time since the last epoch
+with 4 or more channels (s / 100, at most 10); the previous action (2); the progress
+t / duration.
+
+## Rewards
+``-min(mean_k |dr_k|, reward_cap)`` over the interval's navigation steps, ``dr`` the 3-D
+position error in metres (the local-level linearisation of
+:class:`~navsim.envs.navigation.NavigationEnv`); a non-finite solution gets
+``-reward_cap``.
+
+## Episode end
+Truncated at the scenario's end; ``info["episode_score"]`` is the estimator's
+:class:`~navsim.metrics.EpisodeScore` over the whole episode.
+
+## Noise hooks
+:class:`NoiseAdapter` knows where each bundled estimator keeps its noise after
+``reset``; the factors are applied from base values saved at reset (see
+:data:`NOISE_HOOKS`). Q factors multiply PSDs, R factors multiply variances (sigmas by
+its square root). A changed Q takes effect at the estimator's next covariance interval
+(1 s by default, the decision period). A third-party estimator may offer
+``set_noise_scale(q_scale, r_scale)`` instead.
+
+## Version History
+* v0: initial version.
+
+References
+----------
+.. [1] Gao X. et al., RL-AKF: an adaptive Kalman filter navigation algorithm based on
+       reinforcement learning for ground vehicles, Remote Sensing 12(11):1704, 2020
+       (the action scales the filter's noise covariances; reward from the position error).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from navsim.errors import ConfigError
+
+from .chunks import EpisodeTape
+from .navigation import resolve_scenario
+
+__all__ = ["AdaptiveFilterEnv", "NoiseAdapter", "NOISE_HOOKS"]
+
+NOISE_HOOKS: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
+    # class name: (Q attributes (PSD: times q), R variance attributes (times r), R sigma attributes (times sqrt r))
+    "LooselyCoupledEkf": (("engine.Qc",), (), ("sigma_pos", "sigma_vel")),
+    "InsOnly": (("engine.Qc",), (), ()),
+    "TightlyCoupledEkf": (("engine.Qc",), (), ("sigma_pr", "sigma_rate")),
+    "TightlyCoupledUkf": (("engine.Qc",), (), ("sigma_pr", "sigma_rate")),
+    "AlongTrackFilter": (("q_v", "q_b"), (), ("sigma_pr", "sigma_rate")),
+    "GnssConstantVelocity": (("accel_psd",), (), ("sigma_pos", "sigma_vel")),
+    "GnssLeastSquares": ((), (), ("sigma_pos", "sigma_vel")),
+    "PaperEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
+}
+"""Where each bundled estimator keeps its noise (attribute paths, valid after reset)."""
+
+
+def _get(obj, path: str):
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _set(obj, path: str, value) -> None:
+    parts = path.split(".")
+    for part in parts[:-1]:
+        obj = getattr(obj, part)
+    setattr(obj, parts[-1], value)
+
+
+class NoiseAdapter:
+    """Scale the process and measurement noise of an estimator after its reset.
+
+    Parameters
+    ----------
+    estimator : a bundled estimator (class in :data:`NOISE_HOOKS`) or an object with
+        ``set_noise_scale(q_scale, r_scale)``.
+    """
+
+    def __init__(self, estimator: Any):
+        self.estimator = estimator
+        self.custom = callable(getattr(estimator, "set_noise_scale", None))
+        name = type(estimator).__name__
+        if not self.custom and name not in NOISE_HOOKS:
+            raise ConfigError("estimator", f"an estimator with noise hooks {sorted(NOISE_HOOKS)} or "
+                              "a set_noise_scale(q_scale, r_scale) method", name)
+        self.hooks = NOISE_HOOKS.get(name, ((), (), ()))
+        self.base: dict[str, Any] = {}
+
+    def capture(self) -> None:
+        """Save the base values (call right after ``estimator.reset``)."""
+        if self.custom:
+            return
+        q, r_var, r_sig = self.hooks
+        self.base = {}
+        for path in (*q, *r_var, *r_sig):
+            try:
+                value = _get(self.estimator, path)
+            except AttributeError:
+                raise ConfigError(f"{type(self.estimator).__name__}.{path}", "the noise attribute of NOISE_HOOKS "
+                                  "(the estimator changed: update navsim.envs.adaptive.NOISE_HOOKS)", "missing") from None
+            self.base[path] = np.copy(value) if isinstance(value, np.ndarray) else float(value)
+
+    def set(self, q_scale: float, r_scale: float) -> None:
+        """Apply the factors to the saved base values."""
+        if self.custom:
+            self.estimator.set_noise_scale(q_scale, r_scale)
+            return
+        q, r_var, r_sig = self.hooks
+        for path in q:
+            _set(self.estimator, path, self.base[path] * q_scale)
+        for path in r_var:
+            _set(self.estimator, path, self.base[path] * r_scale)
+        for path in r_sig:
+            _set(self.estimator, path, self.base[path] * math.sqrt(r_scale))
+
+
+class AdaptiveFilterEnv(gym.Env):
+    """An estimator whose Q and R an agent scales (see the module docstring).
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+        Default "paper-2012" (GNSS lost 400-700 s).
+    estimator : str or estimator object
+        Default "lc-ekf"; ``estimator_options`` for a named one.
+    decision_period_s : float
+        Time between decisions (a whole number of navigation steps), default 1 s.
+    max_scale : float
+        Largest factor (the action maps to ``max_scale ** a``).
+    reward_cap : float
+    **overrides
+        Scenario sections.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, scenario="paper-2012", *, estimator: Any = "lc-ekf", estimator_options: dict | None = None,
+                 decision_period_s: float = 1.0, max_scale: float = 10.0, reward_cap: float = 1e4,
+                 render_mode: str | None = None, **overrides: Any) -> None:
+        from navsim.episode import make_context
+        from navsim.simulator import Simulator
+
+        if render_mode is not None:
+            raise ConfigError("render_mode", "None (the adaptive-filtering env does not render)", render_mode)
+        if not (max_scale > 1.0 and math.isfinite(max_scale)):
+            raise ConfigError("max_scale", "a finite factor > 1", max_scale)
+        self.scenario = resolve_scenario(scenario, overrides)
+        timing = self.scenario.timing
+        ratio = decision_period_s / timing.nav_period_s
+        if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+            raise ConfigError("decision_period_s", f"a whole multiple of nav_period_s={timing.nav_period_s}",
+                              decision_period_s)
+        self.steps_per_decision = int(round(ratio))
+        self.sim = Simulator(self.scenario)
+        self.context = make_context(self.sim)
+        self.prn = np.asarray(self.sim.constellation.prn)
+        if isinstance(estimator, str):
+            from navsim.estimators import make
+
+            self.estimator_name = estimator
+            estimator = make(estimator, **(estimator_options or {}))
+        else:
+            self.estimator_name = type(estimator).__name__
+        self.estimator = estimator
+        self.adapter = NoiseAdapter(estimator)
+        self.max_scale = float(max_scale)
+        self.reward_cap = float(reward_cap)
+        self.render_mode = None
+        self.n_steps = timing.steps
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        low = np.array([-3, -3, 0, 0, 0, 0, -1, -1, 0], dtype=np.float32)
+        high = np.array([6, 6, 6, 1, 1, 10, 1, 1, 1], dtype=np.float32)
+        self.observation_space = gym.spaces.Box(low, high, dtype=np.float32)
+        self._k = -1
+
+    def _features(self, out, chunk) -> np.ndarray:
+        cov = out.covariance
+        if cov is not None and np.all(np.isfinite(cov[-1, :3, :3])):
+            hs = math.sqrt(max(cov[-1, 0, 0] + cov[-1, 1, 1], 1e-12))
+            vs = math.sqrt(max(cov[-1, 2, 2], 1e-12))
+        else:
+            hs = vs = 1e6
+        nis = out.nis[np.isfinite(out.nis)]
+        dof = out.nis_dof[np.isfinite(out.nis)]
+        if nis.size:
+            self._last_nis = math.log10(1.0 + float(nis[-1]) / max(int(dof[-1]), 1))
+        g = chunk.gnss
+        if g is not None and len(g.t):
+            n_valid = g.valid.sum(axis=1)
+            self._frac_valid = float(n_valid[-1]) / len(self.prn)
+            good = n_valid >= 4
+            avail = float(good.mean())
+            if good.any():
+                self._last_fix_t = float(g.t[np.flatnonzero(good)[-1]])
+        else:
+            avail = 0.0
+        t = float(chunk.t[-1])
+        x = np.array([math.log10(hs), math.log10(vs), self._last_nis, self._frac_valid, avail,
+                      (t - self._last_fix_t) / 100.0, self._prev[0], self._prev[1], t / self.scenario.timing.duration_s])
+        return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _run_interval(self):
+        from navsim.episode import measurement_batch
+
+        chunk = self.sim.advance(self.steps_per_decision)
+        batch = measurement_batch(chunk, self.prn, self.scenario.timing.nav_period_s)
+        out = _step_batch(self.estimator, batch)
+        self.tape.add_chunk(chunk)
+        self.tape.add_estimates(chunk.step0, out)
+        self._k = chunk.step0 + len(chunk)
+        return chunk, out
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**63 - 1))
+        self.seed_value = int(seed)
+        start = self.sim.reset(self.seed_value)
+        self.prior = start.prior
+        self.estimator.reset(self.context, self.prior)
+        self.adapter.capture()
+        self.adapter.set(1.0, 1.0)
+        self.tape = EpisodeTape(self.n_steps)
+        self._prev = (0.0, 0.0)
+        self._last_nis, self._frac_valid, self._last_fix_t = 0.0, 0.0, 0.0
+        chunk, out = self._run_interval()  # the first interval runs untuned
+        info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "q_scale": 1.0, "r_scale": 1.0,
+                "config_hash": self.scenario.config_hash()}
+        return self._features(out, chunk), info
+
+    def step(self, action):
+        if self._k < 0 or self._k >= self.n_steps:
+            raise RuntimeError("AdaptiveFilterEnv.step: call reset() first")
+        a = np.clip(np.asarray(action, dtype=float).reshape(2), -1.0, 1.0)
+        q, r = self.max_scale ** a[0], self.max_scale ** a[1]
+        self.adapter.set(q, r)
+        self._prev = (float(a[0]), float(a[1]))
+        chunk, out = self._run_interval()
+        err = _position_error(out.solution, chunk.truth, self.sim.earth)
+        e = float(np.mean(err))
+        reward = -e if e < self.reward_cap else -self.reward_cap
+        obs = self._features(out, chunk)
+        info = {"q_scale": float(q), "r_scale": float(r), "receiver_outage": bool(chunk.receiver_outage[-1])
+                if len(chunk.receiver_outage) else False, "position_error_m": e}
+        truncated = self._k >= self.n_steps
+        if truncated:
+            from navsim.metrics import score_episode
+
+            record = self.tape.record(self.scenario, self.seed_value, f"{self.estimator_name}+agent", self.sim.earth,
+                                      self.prior)
+            info["episode_score"] = score_episode(record, track=self.sim.track)
+        return obs, reward, False, truncated, info
+
+
+def _step_batch(estimator, batch):
+    if callable(getattr(estimator, "step_batch", None)):
+        return estimator.step_batch(batch)
+    from navsim.estimators.base import EstimateBatch
+
+    rows, covs, nis, dof = [], [], [], []
+    for i in range(len(batch)):
+        e = estimator.step(batch.measurement(i))
+        rows.append(e.as_action())
+        covs.append(e.covariance)
+        nis.append(np.nan if e.nis is None else e.nis)
+        dof.append(e.nis_dof or 0)
+    cov = None if any(c is None for c in covs) else np.stack(covs)
+    return EstimateBatch(np.array(rows), cov, np.array(nis, dtype=float), np.array(dof, dtype=int))
+
+
+def _position_error(solution: np.ndarray, truth, earth) -> np.ndarray:
+    """3-D position error (m) per step, local-level linearisation about the truth."""
+    r_n, r_e = earth.radii(truth.lat)
+    d_lon = solution[:, 1] - truth.lon
+    d_lon = np.where(np.abs(d_lon) > math.pi, np.remainder(d_lon + math.pi, 2 * math.pi) - math.pi, d_lon)
+    dn = (solution[:, 0] - truth.lat) * (r_n + truth.h)
+    de = d_lon * (r_e + truth.h) * np.cos(truth.lat)
+    du = solution[:, 2] - truth.h
+    err = np.sqrt(dn * dn + de * de + du * du)
+    return np.where(np.isfinite(err), err, np.inf)

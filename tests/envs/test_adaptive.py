@@ -1,0 +1,84 @@
+"""Adaptive-filtering env: checker, noise hooks of every bundled estimator, reward, score."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import navsim.envs  # noqa: E402,F401
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+from navsim import estimators  # noqa: E402
+from navsim.envs.adaptive import NOISE_HOOKS, NoiseAdapter, _get  # noqa: E402
+from navsim.errors import ConfigError  # noqa: E402
+
+OVER = {"timing": {"duration_s": 12.0}, "outages": {"windows_s": [[5.0, 8.0]]}}
+
+
+def test_check_env_without_warnings():
+    env = gym.make("navsim/AdaptiveFilter-v0", timing={"duration_s": 6.0})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    assert [str(w.message) for w in caught] == []
+
+
+@pytest.mark.parametrize("name", estimators.available())
+def test_noise_hooks_scale_the_estimator(name):
+    env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, **OVER).unwrapped
+    env.reset(seed=2)
+    hooks = NOISE_HOOKS[type(env.estimator).__name__]
+    env.step(np.array([1.0, -0.5], dtype=np.float32))  # q x 10, r x 10^-0.5
+    q, r_var, r_sig = hooks
+    for path in q:
+        assert np.allclose(_get(env.estimator, path), 10.0 * env.adapter.base[path])
+    for path in r_var:
+        assert _get(env.estimator, path) == pytest.approx(10**-0.5 * env.adapter.base[path])
+    for path in r_sig:
+        assert _get(env.estimator, path) == pytest.approx(10**-0.25 * env.adapter.base[path])
+    env.step(np.zeros(2, dtype=np.float32))  # back to the untuned filter
+    for path in (*q, *r_var, *r_sig):
+        assert np.array_equal(_get(env.estimator, path), env.adapter.base[path])
+
+
+def _episode(action, name="lc-ekf", seed=1):
+    env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, **OVER)
+    obs, info = env.reset(seed=seed)
+    total, errors = 0.0, []
+    while True:
+        obs, r, term, trunc, info = env.step(np.asarray(action, dtype=np.float32))
+        assert env.observation_space.contains(obs)
+        total += r
+        errors.append(info["position_error_m"])
+        if term or trunc:
+            return total, errors, info
+
+
+def test_untuned_action_reproduces_the_estimator_and_reward_is_its_error():
+    from navsim.episode import run_episode
+    from navsim.metrics import error_series
+    from navsim.scenario import load_scenario
+
+    total, errors, info = _episode([0.0, 0.0])
+    record = run_episode(load_scenario("paper-2012").with_overrides(OVER), estimators.make("lc-ekf"), seed=1)
+    e = error_series(record).error[:, :3]
+    per_step = np.sqrt(np.sum(e * e, axis=1))
+    means = per_step[100:].reshape(-1, 100).mean(axis=1)  # the decisions after the first interval
+    assert np.allclose(errors, means, rtol=1e-6)
+    assert total == pytest.approx(-means.sum(), rel=1e-6)
+    assert info["episode_score"].horizontal_rmse_m == pytest.approx(
+        math.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1))), rel=1e-9)
+
+
+def test_scales_change_the_outcome_and_bad_options():
+    base = _episode([0.0, 0.0])[0]
+    assert _episode([1.0, 1.0])[0] != base
+    with pytest.raises(ConfigError):
+        gym.make("navsim/AdaptiveFilter-v0", decision_period_s=0.015)
+    with pytest.raises(ConfigError):
+        NoiseAdapter(object())

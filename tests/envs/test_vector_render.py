@@ -1,0 +1,148 @@
+"""Native vector env against single envs; sync/async modes; rendering and RecordVideo."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import navsim.envs as ne  # noqa: E402
+from navsim.envs.render import HEIGHT, WIDTH  # noqa: E402
+from navsim.envs.spaces import solution_to_action  # noqa: E402
+from navsim.envs.vector import NavigationVectorEnv, SharedTruth  # noqa: E402
+from navsim.errors import ConfigError  # noqa: E402
+
+OVER = {"timing": {"duration_s": 3.0}, "outages": {"windows_s": [[1.0, 2.0]]}}
+
+
+def _prior_actions(info) -> np.ndarray:
+    return np.array([solution_to_action([p.lat, p.lon, p.h, *p.velocity_n, p.heading, p.pitch, p.roll])
+                     for p in info["prior"]])
+
+
+def _same(a: dict, b: dict) -> bool:
+    return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_native_vector_equals_single_envs_over_two_episodes():
+    """Sub-env j is the single env with seed + j, through an autoreset (NEXT_STEP)."""
+    n = 3
+    venv = gym.make_vec("navsim/MountainRailway-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                        chunk_steps=130, reward_weights=(1.0, 0.5, 2.0), **OVER)
+    assert isinstance(venv.unwrapped, NavigationVectorEnv)
+    singles = [gym.make("navsim/MountainRailway-v0", reward_weights=(1.0, 0.5, 2.0), **OVER) for _ in range(n)]
+    obs_v, info_v = venv.reset(seed=20)
+    outs = [env.reset(seed=20 + j) for j, env in enumerate(singles)]
+    assert venv.observation_space.contains(obs_v)
+    for j in range(n):
+        assert _same({k: v[j] for k, v in obs_v.items()}, outs[j][0])
+    rng = np.random.default_rng(1)
+    actions = _prior_actions(info_v)
+    steps = singles[0].unwrapped.n_steps
+    scores_seen = 0
+    for k in range(2 * steps + 2):
+        actions = actions + 1e-8 * rng.standard_normal(actions.shape)
+        obs_v, rew_v, term_v, trunc_v, info_v = venv.step(actions)
+        for j, env in enumerate(singles):
+            if k % (steps + 1) == steps:  # NEXT_STEP autoreset: the step after the end resets
+                obs_s, info_s = env.reset()
+                rew_s, trunc_s = 0.0, False
+                assert info_v["seed"][j] == info_s["seed"]
+            else:
+                obs_s, rew_s, _, trunc_s, info_s = env.step(actions[j])
+            assert _same({key: v[j] for key, v in obs_v.items()}, obs_s)
+            assert rew_v[j] == rew_s and trunc_v[j] == trunc_s
+            assert info_v["receiver_outage"][j] == info_s["receiver_outage"]
+            if trunc_s:
+                assert info_v["episode_score"][j].to_flat_dict() == info_s["episode_score"].to_flat_dict()
+                scores_seen += 1
+    assert scores_seen == 2 * n
+    # the truth was generated once per chunk and shared
+    assert venv.unwrapped.sims[0].truthgen.hits > 0
+    venv.close()
+    venv.close()
+
+
+def test_shared_truth_is_a_cache_of_the_same_function():
+    from navsim.scenario import load_scenario
+    from navsim.simulator import Simulator
+
+    sim = Simulator(load_scenario("urban-road").with_overrides({"timing": {"duration_s": 5.0}}))
+    shared = SharedTruth(sim.truthgen)
+    a = shared.samples(0, 120)
+    b = shared.samples(0, 120)
+    assert a is b and shared.hits == 1
+    direct = Simulator(load_scenario("urban-road").with_overrides({"timing": {"duration_s": 5.0}})).truthgen.samples(0, 120)
+    assert np.array_equal(a.dtheta_r, direct.dtheta_r) and np.array_equal(a.truth.lat, direct.truth.lat)
+
+
+def test_sync_and_async_modes():
+    for mode in ("sync", "async"):
+        venv = gym.make_vec("navsim/PaperRail-v0", num_envs=2, vectorization_mode=mode, timing={"duration_s": 0.5})
+        obs, info = venv.reset(seed=3)
+        native = gym.make_vec("navsim/PaperRail-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                              timing={"duration_s": 0.5})
+        obs_n, _ = native.reset(seed=3)
+        assert _same(obs, obs_n)
+        for _ in range(10):
+            obs, *_ = venv.step(np.zeros((2, 9)))
+            obs_n, *_ = native.step(np.zeros((2, 9)))
+        assert _same(obs, obs_n)
+        venv.close()
+        native.close()
+
+
+def test_vector_env_refuses_partial_resets_and_external_motion():
+    venv = NavigationVectorEnv(2, "paper-2012", timing={"duration_s": 0.5})
+    with pytest.raises(ConfigError, match="reset_mask"):
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    with pytest.raises(ConfigError, match="external"):
+        NavigationVectorEnv(2, "paper-2012", timing={"duration_s": 0.5}, motion={"profile": "external"})
+
+
+def test_rgb_array_frames_show_track_truth_estimate_and_outage():
+    over = {"timing": {"duration_s": 40.0}, "outages": {"windows_s": [[10.0, 25.0]]}}
+    env = gym.make("navsim/PaperRail-v0", render_mode="rgb_array", truth_in_info=True, **over)
+    obs, info = env.reset(seed=0)
+    first = env.render()
+    assert first.shape == (HEIGHT, WIDTH, 3) and first.dtype == np.uint8
+    for _ in range(3000):  # 30 s; estimate 30 m north of the truth
+        truth = info["truth"].copy()
+        truth[0] += 30.0 / 6.37e6
+        obs, r, term, trunc, info = env.step(solution_to_action(truth))
+    frame = env.render()
+    colours = {tuple(c) for c in frame.reshape(-1, 3)}
+    assert {(0, 150, 0), (220, 0, 0), (255, 150, 0), (170, 170, 170)} <= colours  # truth, estimate, outage, track
+    assert not np.array_equal(frame, first)
+    env.close()
+    env.close()
+
+
+def test_human_mode_runs_headless(monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    env = gym.make("navsim/PaperRail-v0", render_mode="human", timing={"duration_s": 0.05})
+    env.reset(seed=0)
+    for _ in range(5):
+        assert env.step(np.zeros(9))[0] is not None
+    assert env.render() is None
+    env.close()
+    env.close()
+
+
+def test_record_video(tmp_path):
+    pytest.importorskip("moviepy")
+    from gymnasium.wrappers import RecordVideo
+
+    env = gym.make("navsim/PaperRail-v0", render_mode="rgb_array", timing={"duration_s": 0.3})
+    env = RecordVideo(env, str(tmp_path), episode_trigger=lambda e: True, disable_logger=True)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        *_, term, trunc, _ = env.step(np.zeros(9))
+        done = term or trunc
+    env.close()
+    videos = list(tmp_path.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000
