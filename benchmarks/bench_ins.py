@@ -1,19 +1,24 @@
-"""Batch strapdown throughput of navsim.strapdown.ins.integrate, in IMU samples per second.
+"""Batch strapdown throughput of navsim.strapdown.ins.integrate, beside pyins in one process.
 
 Measured in one process, on the same data (a vehicle at rest on WGS-84, 100 Hz navigation
 steps with m = 2 IMU sub-samples per step, so 1 step = 2 IMU samples):
 
-* ``integrate`` with sub-sample increments (two-sample coning/sculling, trapezoid);
-* ``integrate`` with multiple integrals (invariant algorithms, exact position form);
-* ``ins_step`` called once per step (how a stepped estimator uses the INS);
-* a plain reference loop: the same equations written directly with numpy per step
-  (first-order Euler on gravity/Coriolis, rotations through navsim.rotations), the
-  usual first version of such code.
+* ``integrate`` with sub-sample increments (two-sample coning/sculling, trapezoid) and
+  with multiple integrals (invariant algorithms, exact position form), each with
+  ``method="sequential"`` (the per-step loop) and ``method="scan"`` (loop-free:
+  navsim.strapdown.scan), whole call (body terms + integration) and integration alone
+  (``integrate_body_terms`` on precomputed terms);
+* pyins (PyPI python-ins) strapdown, warm (numba compiled): the public
+  ``strapdown.Integrator.integrate`` (pandas in and out) and its numba kernel
+  ``pyins._numba_integrate.integrate`` alone. pyins does one attitude/velocity update per
+  increment, so its samples/s are its updates/s; it takes coning/sculling-corrected
+  increments as input (``compute_increments_from_imu``, not timed here);
+* ``ins_step`` called once per step and a plain per-step numpy loop (small counts).
 
-Anchor: pyins' numba strapdown integrator, 1.29 M samples/s warm on this kind of machine
-(research/anchors-ins-gnss.md).
+The machine is shared: only same-process ratios are meaningful. Research notes quote pyins
+at 1.29 M samples/s warm on a quiet machine of this kind.
 
-Run: ``python benchmarks/bench_ins.py [seconds]`` (default 300 s of data).
+Run: ``python benchmarks/bench_ins.py [steps ...]`` (default 100000 1000000).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import numpy as np
 
 from navsim.earth import WGS84
 from navsim.rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_multiply, quat_to_mat
-from navsim.strapdown.ins import InsState, ins_step, integrate
+from navsim.strapdown.ins import InsState, ins_step
 
 SUB = 2
 DT = 0.01
@@ -66,40 +71,97 @@ def plain_loop(state: InsState, dth, dv, dt: float, earth=WGS84):
     return lat, lon, h, v, q
 
 
-def _rate(seconds: float, steps: int) -> str:
-    return f"{steps / seconds:10.0f} steps/s  {SUB * steps / seconds:10.0f} samples/s"
+def _rate(seconds: float, steps: int, samples_per_step: int = SUB) -> str:
+    return f"{steps / seconds / 1e3:9.0f} k steps/s {samples_per_step * steps / seconds / 1e3:9.0f} k samples/s"
 
 
-def main(duration_s: float = 300.0) -> None:
-    n = int(round(duration_s / DT))
-    state, dth, dv, th_r, dv_r = _data(n)
-    print(f"navsim INS throughput, {n} steps of {DT} s, {SUB} IMU samples per step, WGS-84")
-    integrate(state, dth[:100], dv[:100], dt=DT)  # warm-up
+def _best(fn, repeat: int) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
 
-    t0 = time.perf_counter()
-    integrate(state, dth, dv, dt=DT, coning="two-sample", sculling="two-sample", position="trapezoid")
-    t1 = time.perf_counter()
-    print(f"  integrate, sub-samples (two-sample, trapezoid)    {_rate(t1 - t0, n)}")
 
-    t0 = time.perf_counter()
-    integrate(state, None, None, th_r, dv_r, dt=DT)
-    t1 = time.perf_counter()
-    print(f"  integrate, multiple integrals (invariant, exact)  {_rate(t1 - t0, n)}")
+def pyins_runners(n: int):
+    """pyins Integrator.integrate and its numba kernel on n increments (None if not installed)."""
+    try:
+        import pandas as pd
+        from pyins import strapdown
+        from pyins._numba_integrate import integrate as kernel
+    except ImportError:
+        return None
+    rng = np.random.default_rng(0)
+    pva = pd.Series({"lat": 40.0, "lon": 20.0, "alt": 100.0, "VN": 0.0, "VE": 0.0, "VD": 0.0,
+                     "roll": 1.0, "pitch": 2.0, "heading": 30.0})
+    theta = 1e-7 + 1e-9 * rng.standard_normal((n, 3))
+    dv = np.array([0.001, 0.002, -0.098]) + 1e-7 * rng.standard_normal((n, 3))
+    inc = pd.DataFrame({"dt": DT, "theta_x": theta[:, 0], "theta_y": theta[:, 1], "theta_z": theta[:, 2],
+                        "dv_x": dv[:, 0], "dv_y": dv[:, 1], "dv_z": dv[:, 2]}, index=np.arange(1, n + 1) * DT)
+    strapdown.Integrator(pva).integrate(inc.iloc[:100])  # warm-up: numba compilation
 
-    m = min(n, 5000)
+    def public():
+        strapdown.Integrator(pva).integrate(inc)
+
+    lla = np.zeros((n + 1, 3))
+    lla[0] = [40.0, 20.0, 100.0]
+    vel = np.zeros((n + 1, 3))
+    mat = np.zeros((n + 1, 3, 3))
+    mat[0] = np.eye(3)
+    dts = np.full(n, DT)
+
+    def raw():
+        kernel(dts, lla, vel, mat, theta, dv, 0, True)
+
+    return public, raw
+
+
+def main(sizes=(100_000, 1_000_000)) -> None:
+    from navsim.strapdown.ins import body_terms, integrate_body_terms
+
+    print("navsim INS throughput beside pyins (same process), 100 Hz steps, 2 IMU samples per step, WGS-84")
+    for n in sizes:
+        repeat = 3 if n <= 200_000 else 1
+        state, dth, dv, th_r, dv_r = _data(n)
+        print(f"\n{n} steps ({n * DT:.0f} s)")
+        runners = pyins_runners(n)
+        if runners is None:
+            print("  pyins not installed (pip install python-ins): no same-process reference")
+        else:
+            public, raw = runners
+            t = _best(public, repeat)
+            print(f"  pyins Integrator.integrate (pandas API)         {_rate(t, n, 1)}")
+            t = _best(raw, repeat)
+            print(f"  pyins numba kernel alone                        {_rate(t, n, 1)}")
+        cases = (
+            ("two-sample, trapezoid", (dth, dv, None, None),
+             dict(coning="two-sample", sculling="two-sample", position="trapezoid")),
+            ("invariant, exact (multiple integrals)", (None, None, th_r, dv_r), {}),
+        )
+        for label, arrays, methods in cases:
+            terms = body_terms(*arrays, DT, **methods)
+            args = (terms.quat_body, terms.dv_body, terms.ds_body, terms.rule, DT, WGS84)
+            t_terms = _best(lambda: body_terms(*arrays, DT, **methods), repeat)
+            for method in ("sequential", "scan"):
+                reps = 1 if method == "sequential" else repeat
+                t_int = _best(lambda: integrate_body_terms(state, *args, method=method), reps)
+                print(f"  navsim {method:10s} {label:38s} integration {_rate(t_int, n)}")
+                print(f"  navsim {method:10s} {label:38s} + body terms {_rate(t_int + t_terms, n)}")
+
+    m = 5000
+    state, dth, dv, th_r, dv_r = _data(m)
     t0 = time.perf_counter()
     s = state
     for k in range(m):
         s = ins_step(s, dth[k], dv[k], dt=DT, coning="two-sample", sculling="two-sample", position="trapezoid")
     t1 = time.perf_counter()
-    print(f"  ins_step per step ({m} steps)                   {_rate(t1 - t0, m)}")
-
+    print(f"\n  ins_step per step ({m} steps)                   {_rate(t1 - t0, m)}")
     t0 = time.perf_counter()
     plain_loop(state, dth[:m], dv[:m], DT)
     t1 = time.perf_counter()
     print(f"  plain numpy loop, reference ({m} steps)         {_rate(t1 - t0, m)}")
-    print("  anchor: pyins numba strapdown, warm                       1.29 M samples/s")
 
 
 if __name__ == "__main__":
-    main(float(sys.argv[1]) if len(sys.argv) > 1 else 300.0)
+    main(tuple(int(float(x)) for x in sys.argv[1:]) or (100_000, 1_000_000))
