@@ -1,0 +1,64 @@
+"""The shared variable table: names, units, shapes; what the faces may see."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from navsim.fmu.variables import (UNITS, Dimensions, Var, action_variables, estimator_variables,
+                                  observation_variables, plant_variables, scalar_names)
+
+DIMS = Dimensions(channels=5, orders=3, samples_per_step=2)
+
+
+def test_scalar_names_row_major_one_based():
+    v = Var("gnss.sat_pos_e", "real", "output", "discrete", "m", "x", shape=(2, 3))
+    assert scalar_names(v) == [f"gnss.sat_pos_e[{i},{j}]" for i in (1, 2) for j in (1, 2, 3)]
+    assert scalar_names(Var("a", "real", "output", "discrete", "", "x")) == ["a"]
+
+
+def test_tables_unique_names_known_units_and_sizes():
+    for table in (plant_variables(DIMS), estimator_variables(DIMS)):
+        names = [v.name for v in table]
+        assert len(names) == len(set(names))
+        assert all(v.unit == "" or v.unit in UNITS for v in table)
+    plant = {v.name: v for v in plant_variables(DIMS)}
+    assert plant["gnss.pseudorange_m"].shape == (5,)
+    assert plant["imu.dtheta_sub"].shape == (2, 3)
+    assert [n for n in plant if n.startswith("imu.dtheta_r")] == ["imu.dtheta_r1", "imu.dtheta_r2", "imu.dtheta_r3"]
+    # r-fold integrals carry rad.s^(r-1) and m/s.s^(r-1)
+    assert [plant[f"imu.dtheta_r{r}"].unit for r in (1, 2, 3)] == ["rad", "rad.s", "rad.s2"]
+    assert [plant[f"imu.dv_r{r}"].unit for r in (1, 2, 3)] == ["m/s", "m", "m.s"]
+
+
+def test_estimator_inputs_are_plant_outputs_of_same_kind_and_never_truth():
+    plant = {v.name: v for v in plant_variables(DIMS)}
+    inputs = [v for v in estimator_variables(DIMS) if v.causality == "input"]
+    assert inputs
+    for v in inputs:
+        p = plant[v.name]
+        assert p.causality == "output" and (p.type, p.shape, p.unit) == (v.type, v.shape, v.unit)
+        assert not v.name.startswith("truth.")
+    assert all(v.start is not None for v in inputs)
+
+
+def test_observation_and_action_tables():
+    obs = observation_variables(DIMS)
+    assert not any(v.group in ("truth", "prior", "parameter") for v in obs)
+    assert {"gnss.valid", "gnss.new_epoch", "imu.dv_r1", "time.t_s"} <= {v.name for v in obs}
+    act = action_variables()
+    # the order of Estimate.as_action: lat, lon, h, vE, vN, vU, heading, pitch, roll
+    flat = [n for v in act for n in scalar_names(v)]
+    assert flat == ["nav.lat_rad", "nav.lon_rad", "nav.h_m", "nav.velocity_n[1]", "nav.velocity_n[2]",
+                    "nav.velocity_n[3]", "nav.heading_rad", "nav.pitch_rad", "nav.roll_rad"]
+    assert all(v.low is not None and v.high is not None and v.low < v.high for v in act)
+
+
+def test_dimensions_of_simulator(scenario):
+    from navsim.simulator import Simulator
+
+    sim = Simulator(scenario)
+    d = Dimensions.of(sim)
+    assert d == Dimensions(len(sim.constellation.prn), scenario.imu.orders, scenario.timing.samples_per_step)
+    assert all(isinstance(x, int) for x in dataclasses.astuple(d))
