@@ -25,7 +25,8 @@ External motion
     ``motion.accel_mps2`` are the along-track state at ``t + h`` (default; a master
     that steps the motion source before the plant, Gauss-Seidel), or, with
     ``motion.inputs_at_step_start``, the state at ``t`` carried to ``t + h`` at constant
-    acceleration. The sample is pushed into the core's
+    acceleration. The input values at ``exitInitializationMode`` are the initial state
+    (``motion.start_s_m``, ``motion.speed_mps`` and the initial acceleration). The sample is pushed into the core's
     :class:`~navsim.motion.ExternalMotion` (quintic Hermite between samples), exactly as
     :meth:`Simulator.push_motion` does when ``h`` is one navigation step.
 Estimator
@@ -253,8 +254,9 @@ def effective_scenario(base, params: dict):
     windows = _toml_value("outages.windows_s", params["outages.windows_s"] or "[]")
     if windows != [list(w) for w in base.outages.windows_s]:
         over["outages"] = {"windows_s": windows}
-    if params["motion.use_inputs"]:
-        over.setdefault("motion", {})["profile"] = "external"
+    if params["motion.use_inputs"]:  # the inputs at initialisation are the initial state
+        over.setdefault("motion", {}).update(profile="external", start_s_m=float(params["motion.s_m"]),
+                                             speed_mps=float(params["motion.speed_mps"]))
     elif base.motion.profile == "external":
         raise ConfigError("motion.use_inputs", "true for a scenario whose motion profile is 'external'", False)
     scenario = base.with_overrides(over) if over else base
@@ -292,7 +294,7 @@ class _RuntimeBase:
         self.store.write("navsim.scenario", scenario.name)
 
     def params(self) -> dict:
-        return {v.name: self.store.read(v.name) for v in self.store.table if v.causality == "parameter"}
+        return {v.name: self.store.read(v.name) for v in self.store.table if v.causality in ("parameter", "input")}
 
     # FMI set: parameters only before initialisation is over, inputs at any time
     def settable(self) -> tuple[str, ...]:
@@ -341,6 +343,11 @@ class PlantRuntime(_RuntimeBase):
         self.end_tick = self.timing.steps * self.nav_ticks
         self.tick = 0
         start = sim.reset(seed)
+        a0 = float(params["motion.accel_mps2"])
+        if self.external and a0 != 0.0:  # Simulator.reset starts external motion at zero acceleration
+            m = scenario.motion
+            sim.profile.reset(0.0, m.start_s_m, m.speed_mps, a0)
+            start = type(start)(truth=sim.truth_at([0.0]), prior=start.prior)
         self._info(scenario)
         self.store.write("gnss.prn", np.asarray(sim.constellation.prn))
         p = start.prior
