@@ -46,13 +46,15 @@ def test_wrong_step_sizes_are_refused_with_a_message(fmi, request):
     ({"seed": -3}, "seed"),
     ({"outages.windows_s": "[[5, 2]]"}, "outages.windows_s"),
     ({"scenario.overrides": "imu.orders = 2"}, "dimensions"),
-    ({"motion.use_inputs": True, "motion.s_m": -50.0}, None),
+    ({"motion.use_inputs": True, "motion.s_m": -50.0}, "motion.start_s_m"),
+    ({"motion.use_inputs": True, "motion.s_m": 10.0}, None),
 ])
 def test_bad_parameters_give_a_fatal_status_naming_the_field(fmi, params, field, request):
     inst = FmuInstance(request.getfixturevalue(f"plant{fmi}"), "p")
     try:
-        if field is None:  # accepted at initialisation, refused at the step that uses it
+        if field is None:  # a valid start, then an input off the track: refused at the step that uses it
             inst.initialize(params)
+            inst.set({"motion.s_m": 1e9})
             with pytest.raises(FmuCallError, match="motion inputs: expected an arc length"):
                 inst.do_step(0.0, 0.01)
         else:
