@@ -1,0 +1,337 @@
+"""The driving task: run a train to a timetable on the navigation solution, stop at platform marks.
+
+## Description
+The agent is the driver (or the automatic train operation): every ``decision_period_s``
+it sets the traction/brake command of a train (:mod:`navsim.envs.plant`) running a
+timetable over the scenario's stations. The train's motion goes into the core simulator
+as external motion; an attached estimator (default "along-track") turns the simulated
+sensor data into a navigation solution, and the agent sees that solution, never the
+truth. Precise stopping at a platform mark with GNSS lost in a tunnel is where
+navigation quality meets control.
+
+## Action space
+``Box(-1, 1, (1,))``: the command u (traction for u > 0, brake for u < 0), held over
+the decision period.
+
+## Observation space
+``Box(9,)`` float32: distance from the *estimated* arc length to the next platform mark
+(km, [-1, 50]); estimated along-track speed / 30 m/s ([-1, 2]); time to the scheduled
+arrival at the next station / 600 s ([-5, 5]); the track grade at the estimated position
+x 10 ([-1, 1]); the estimator's along-track position sigma / 10 m ([0, 100]); the
+fraction of valid GNSS channels at the last epoch; the previous command; 1 while the
+train dwells at a station; the fraction of stations still to serve.
+
+The estimated arc length is the estimate's position projected on the track (the map)
+near the previous one; the speed is the estimated velocity along the track tangent.
+
+## Rewards
+Per decision: ``-w_comfort * jerk^2 * T - w_energy * E_kWh`` (jerk of the true motion over
+the period, m/s^3; traction energy). At each stop at a station (the true speed reaches 0
+with the true arc length within ``stop_tolerance_m`` of the mark):
+``+ stop_bonus * (1 - |stop error| / stop_tolerance_m) - w_late * max(0, late) / 60 -
+w_early * max(0, early) / 60`` (lateness / earliness against the schedule, s). The train
+then dwells (commands are ignored) until ``max(arrival + dwell, scheduled departure)``.
+Stopping more than ``stop_tolerance_m`` beyond a mark is an overrun: ``-overrun_penalty``
+and the episode terminates. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10,
+w_late 1 per minute, w_early 0.2 per minute, overrun_penalty 20, stop_tolerance_m 2.
+
+## Starting state
+At rest at the first station, departing at its dwell time; the schedule is the core's
+jerk-limited minimum-time timetable (the scenario's ``motion`` section) stretched by
+``1 + slack`` (default 5 %).
+
+## Episode end
+Terminated when the last station is served or on an overrun; truncated when the
+scenario's time runs out (the duration is extended to 1.25 x the scheduled journey).
+``info["episode_score"]`` at the end: the estimator's navigation score over the episode.
+
+## Version History
+* v0: initial version.
+
+References
+----------
+.. [1] Yin J. et al., Research and development of automatic train operation for railway
+       transportation systems: a survey, Transportation Research Part C 85, 2017 (ATO
+       objectives: punctuality, stopping accuracy, comfort, energy).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from navsim.errors import ConfigError
+
+from .adaptive import _step_batch
+from .chunks import EpisodeTape
+from .navigation import resolve_scenario
+from .plant import TrainParameters, TrainPlant
+
+__all__ = ["DrivingEnv", "schedule_of"]
+
+
+def schedule_of(scenario, slack: float):
+    """(marks (m), dwell (s), scheduled arrival (s), scheduled departure (s)) per station.
+
+    The arrival times of the core's jerk-limited timetable for the scenario's stations,
+    stretched by ``1 + slack`` after the first departure.
+    """
+    from navsim.simulator import build_profile
+
+    if scenario.motion.profile != "timetable":
+        raise ConfigError("motion.profile", "'timetable' with stations for the driving task", scenario.motion.profile)
+    profile = build_profile(scenario)
+    marks = np.array([st.s_m for st in scenario.motion.stations])
+    dwell = np.array([st.dwell_s for st in scenario.motion.stations])
+    t = np.arange(0.0, profile.end_time + 1.0, 0.05)
+    s = profile.evaluate(t)[0]
+    arrival = np.array([t[np.argmax(s >= m - 1e-3)] for m in marks])
+    depart0 = dwell[0]
+    arrival = np.where(np.arange(len(marks)) == 0, 0.0, depart0 + (arrival - depart0) * (1.0 + slack))
+    departure = arrival + dwell
+    departure[0] = depart0
+    return marks, dwell, arrival, departure
+
+
+class _MapTable:
+    """Track positions, tangents and grades at 1 m spacing, for projecting estimates."""
+
+    def __init__(self, track, step_m: float = 1.0):
+        from navsim.track import track_frame
+
+        n = int(math.ceil(track.length / step_m)) + 1
+        self.s = np.linspace(0.0, track.length, n)
+        frame = track_frame(track, self.s)
+        self.lat, self.lon = frame.lat, frame.lon
+        self.heading = frame.heading
+        self.sin_pitch = np.sin(frame.pitch)
+        r_n, r_e = track.earth.radii(frame.lat)
+        self.k_n = r_n + frame.h
+        self.k_e = (r_e + frame.h) * np.cos(frame.lat)
+        self.step = float(self.s[1] - self.s[0])
+
+        self._sin_pitch = self.sin_pitch.tolist()
+        self._last = len(self.s) - 1
+
+    def sin_grade(self, s: float) -> float:
+        """sin(pitch) at arc length s (linear interpolation in the 1 m table)."""
+        x = min(max(s, 0.0), self.s[-1]) / self.step
+        i = min(int(x), self._last - 1)
+        f = x - i
+        return (1.0 - f) * self._sin_pitch[i] + f * self._sin_pitch[i + 1]
+
+    def project(self, lat: float, lon: float, s_guess: float, window_m: float = 300.0) -> float:
+        """Arc length of the track point nearest to (lat, lon), searched near s_guess."""
+        if not (math.isfinite(lat) and math.isfinite(lon)):
+            return s_guess
+        i0 = max(0, int((s_guess - window_m) / self.step))
+        i1 = min(len(self.s), int((s_guess + window_m) / self.step) + 2)
+        dn = (self.lat[i0:i1] - lat) * self.k_n[i0:i1]
+        de = (self.lon[i0:i1] - lon) * self.k_e[i0:i1]
+        return float(self.s[i0 + int(np.argmin(dn * dn + de * de))])
+
+
+class DrivingEnv(gym.Env):
+    """A train driven on the navigation solution (see the module docstring).
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+        A scenario with a timetable (default "mountain-railway"); its motion becomes
+        external, driven by the plant.
+    estimator : str or estimator object
+        Default "along-track".
+    decision_period_s, slack, stop_tolerance_m : float
+    weights : dict, optional
+        Overrides of ``comfort, energy, stop_bonus, late, early, overrun``.
+    train : TrainParameters, optional
+    truth_in_info : bool
+        Put the true s, v, a in the info.
+    **overrides
+        Scenario sections.
+    """
+
+    metadata = {"render_modes": []}
+    WEIGHTS = {"comfort": 0.05, "energy": 0.05, "stop_bonus": 10.0, "late": 1.0, "early": 0.2, "overrun": 20.0}
+
+    def __init__(self, scenario="mountain-railway", *, estimator: Any = "along-track",
+                 estimator_options: dict | None = None, decision_period_s: float = 1.0, slack: float = 0.05,
+                 stop_tolerance_m: float = 2.0, weights: dict | None = None, train: TrainParameters | None = None,
+                 truth_in_info: bool = False, render_mode: str | None = None, **overrides: Any) -> None:
+        from navsim.episode import make_context
+        from navsim.simulator import Simulator
+
+        if render_mode is not None:
+            raise ConfigError("render_mode", "None (the driving env does not render)", render_mode)
+        base = resolve_scenario(scenario, overrides)
+        self.marks, self.dwell, self.sched_arr, self.sched_dep = schedule_of(base, float(slack))
+        timing = base.timing
+        ratio = decision_period_s / timing.nav_period_s
+        if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+            raise ConfigError("decision_period_s", f"a whole multiple of nav_period_s={timing.nav_period_s}",
+                              decision_period_s)
+        if not stop_tolerance_m > 0:
+            raise ConfigError("stop_tolerance_m", "a positive distance, m", stop_tolerance_m)
+        self.weights = dict(self.WEIGHTS)
+        for key, value in (weights or {}).items():
+            if key not in self.WEIGHTS:
+                raise ConfigError(f"weights.{key}", f"one of {sorted(self.WEIGHTS)}", key)
+            self.weights[key] = float(value)
+        period = timing.gnss_period_s
+        duration = math.ceil(1.25 * self.sched_arr[-1] / period) * period
+        self.scenario = base.with_overrides({
+            "motion": {"profile": "external", "start_s_m": float(self.marks[0]), "speed_mps": 0.0},
+            "timing": {"duration_s": float(duration)},
+        })
+        self.steps_per_decision = int(round(ratio))
+        self.dt = timing.nav_period_s
+        self.sim = Simulator(self.scenario)
+        self.context = make_context(self.sim)
+        self.prn = np.asarray(self.sim.constellation.prn)
+        self.map = _MapTable(self.sim.track)
+        self.plant = TrainPlant(self.map.sin_grade, train or TrainParameters())
+        if isinstance(estimator, str):
+            from navsim.estimators import make
+
+            self.estimator_name = estimator
+            estimator = make(estimator, **(estimator_options or {}))
+        else:
+            self.estimator_name = type(estimator).__name__
+        self.estimator = estimator
+        self.stop_tolerance_m = float(stop_tolerance_m)
+        self.truth_in_info = bool(truth_in_info)
+        self.render_mode = None
+        self.n_steps = self.scenario.timing.steps
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        low = np.array([-1, -1, -5, -1, 0, 0, -1, 0, 0], dtype=np.float32)
+        high = np.array([50, 2, 5, 1, 100, 1, 1, 1, 1], dtype=np.float32)
+        self.observation_space = gym.spaces.Box(low, high, dtype=np.float32)
+        self._k = -1
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**63 - 1))
+        self.seed_value = int(seed)
+        start = self.sim.reset(self.seed_value)
+        self.prior = start.prior
+        self.estimator.reset(self.context, self.prior)
+        self.plant.reset(float(self.marks[0]), 0.0)
+        self.tape = EpisodeTape(self.n_steps)
+        self.target = 1  # the next station to serve
+        self.hold_until = float(self.sched_dep[0])  # dwell at the first station
+        self.t = 0.0
+        self._k = 0
+        self._u = 0.0
+        self._a_prev = self.plant.a
+        self._s_hat = float(self.marks[0])
+        self._v_hat, self._sigma_s, self._frac_valid = 0.0, 0.0, 0.0
+        self.energy_kwh = 0.0
+        self.stops: list[dict] = []
+        info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "marks_m": self.marks.copy(),
+                "scheduled_arrival_s": self.sched_arr.copy(), "scheduled_departure_s": self.sched_dep.copy()}
+        return self._observation(), info
+
+    def _observation(self) -> np.ndarray:
+        i = min(self.target, len(self.marks) - 1)
+        held = 1.0 if self.t < self.hold_until else 0.0
+        x = np.array([(self.marks[i] - self._s_hat) / 1000.0, self._v_hat / 30.0, (self.sched_arr[i] - self.t) / 600.0,
+                      10.0 * self.map.sin_grade(self._s_hat), self._sigma_s / 10.0,
+                      self._frac_valid, self._u, held, (len(self.marks) - self.target) / len(self.marks)])
+        return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _navigate(self, n: int):
+        """Push the plant's motion for n steps, simulate, run the estimator; update the
+        navigation-derived observation parts."""
+        from navsim.episode import measurement_batch
+
+        chunk = self.sim.advance(n)
+        out = _step_batch(self.estimator, measurement_batch(chunk, self.prn, self.dt))
+        self.tape.add_chunk(chunk)
+        self.tape.add_estimates(chunk.step0, out)
+        sol = out.solution[-1]
+        self._s_hat = self.map.project(float(sol[0]), float(sol[1]), self._s_hat)
+        j = min(int(round(self._s_hat / self.map.step)), len(self.map.s) - 1)
+        psi = float(self.map.heading[j])
+        self._v_hat = float(sol[3] * math.sin(psi) + sol[4] * math.cos(psi))
+        if out.covariance is not None and np.all(np.isfinite(out.covariance[-1, :2, :2])):
+            tang = np.array([math.sin(psi), math.cos(psi)])
+            self._sigma_s = math.sqrt(max(float(tang @ out.covariance[-1, :2, :2] @ tang), 0.0))
+        if chunk.gnss is not None and len(chunk.gnss.t):
+            self._frac_valid = float(chunk.gnss.valid[-1].sum()) / len(self.prn)
+        return chunk
+
+    def step(self, action):
+        if self._k < 0 or self._k >= self.n_steps:
+            raise RuntimeError("DrivingEnv.step: call reset() first")
+        n = min(self.steps_per_decision, self.n_steps - self._k)
+        dwelling = self.t < self.hold_until
+        u = -1.0 if dwelling else float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
+        if not math.isfinite(u):
+            u = -1.0
+        self._u = 0.0 if dwelling else u
+        k0 = self._k
+        s, v, a, energy_j = self.plant.advance(u, self.dt, n)
+        if s[-1] > self.sim.track.length:
+            s = np.minimum(s, self.sim.track.length)  # buffer stop at the end of the line
+        times = (k0 + 1 + np.arange(n)) * self.dt
+        for tk, sk, vk, ak in zip(times.tolist(), s.tolist(), v.tolist(), a.tolist()):
+            self.sim.profile.push(tk, sk, vk, ak)  # (P.1)-(P.2) states into the external motion
+        self._navigate(n)
+        self._k = k0 + n
+        self.t = self._k * self.dt
+        w = self.weights
+        period = n * self.dt
+        jerk = (a[-1] - self._a_prev) / period
+        self._a_prev = float(a[-1])
+        e_kwh = energy_j / 3.6e6
+        self.energy_kwh += e_kwh
+        reward = -w["comfort"] * jerk * jerk * period - w["energy"] * e_kwh
+        terminated = False
+        info: dict = {"energy_kwh": self.energy_kwh, "station": self.target}
+        # stop events, judged on the true motion
+        if not dwelling and self.target < len(self.marks):
+            mark = float(self.marks[self.target])
+            s_true, v_true = float(s[-1]), float(v[-1])
+            if s_true > mark + self.stop_tolerance_m and (v_true == 0.0 or s_true > mark + 200.0):
+                reward -= w["overrun"]
+                terminated = True
+                info["overrun_m"] = s_true - mark
+            elif v_true == 0.0 and abs(s_true - mark) <= self.stop_tolerance_m:
+                stop_error = s_true - mark
+                late = self.t - float(self.sched_arr[self.target])
+                reward += w["stop_bonus"] * (1.0 - abs(stop_error) / self.stop_tolerance_m)
+                reward -= w["late"] * max(late, 0.0) / 60.0 + w["early"] * max(-late, 0.0) / 60.0
+                self.stops.append({"station": self.target, "stop_error_m": stop_error, "late_s": late, "t": self.t})
+                info["stop_error_m"], info["late_s"] = stop_error, late
+                self.hold_until = max(self.t + float(self.dwell[self.target]), float(self.sched_dep[self.target]))
+                self.target += 1
+                if self.target == len(self.marks):
+                    terminated = True
+        if self.truth_in_info:
+            info["truth"] = {"s": float(s[-1]), "speed": float(v[-1]), "accel": float(a[-1])}
+        truncated = not terminated and self._k >= self.n_steps
+        if terminated or truncated:
+            from navsim.metrics import score_episode
+
+            steps = self._k
+            tape = self.tape
+            tape.n = steps  # score the simulated part of the episode
+            for name in ("s", "lat", "lon", "h", "velocity_n", "hpr"):
+                setattr(tape, name, getattr(tape, name)[:steps])
+            if tape.cov_array is not None:
+                tape.cov_array = tape.cov_array[:steps]
+            if tape.nis_array is not None:
+                tape.nis_array, tape.nis_dof_array = tape.nis_array[:steps], tape.nis_dof_array[:steps]
+            scen = self.scenario.with_overrides({"timing": {"duration_s": steps * self.dt}}) if steps < self.n_steps \
+                else self.scenario
+            record = tape.record(scen, self.seed_value, self.estimator_name, self.sim.earth, self.prior)
+            info["episode_score"] = score_episode(record, track=self.sim.track)
+            info["stops"] = list(self.stops)
+            self.steps_done = steps
+            self._k = self.n_steps  # the episode is over
+        return self._observation(), float(reward), terminated, truncated, info

@@ -1,0 +1,103 @@
+"""Train plant (closed forms) and the driving task (stops, overrun, observation from the estimate)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import navsim.envs  # noqa: E402,F401
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+from navsim.envs.plant import G0, TrainParameters, TrainPlant  # noqa: E402
+
+FLAT = lambda s: 0.0  # noqa: E731
+SHORT = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 3.0}, {"s_m": 900.0, "dwell_s": 5.0}]}}
+
+
+def test_constant_traction_with_linear_resistance_matches_closed_form():
+    p = TrainParameters(max_power_w=1e12, davis_c_n_per_mps2=0.0, rotary_allowance=0.0)
+    plant = TrainPlant(FLAT, p)
+    plant.reset(0.0, 0.0)
+    s, v, a, energy = plant.advance(1.0, 0.01, 2000)  # 20 s at F_max
+    m, F, A, B = p.mass_kg, p.max_traction_n, p.davis_a_n, p.davis_b_n_per_mps
+    t = 0.01 * np.arange(1, 2001)
+    v_exact = (F - A) / B * (1.0 - np.exp(-B * t / m))  # v' = (F - A - B v) / m
+    s_exact = (F - A) / B * (t - m / B * (1.0 - np.exp(-B * t / m)))
+    assert np.allclose(v, v_exact, rtol=1e-9, atol=1e-9)
+    assert np.allclose(s, s_exact, rtol=1e-8, atol=1e-8)
+    assert energy == pytest.approx(F * s_exact[-1], rel=1e-4)  # force-limited: E = F * distance (trapezoid in time)
+
+
+def test_braking_stops_at_v0_squared_over_2b_and_does_not_roll_back():
+    p = TrainParameters(davis_a_n=0.0, davis_b_n_per_mps=0.0, davis_c_n_per_mps2=0.0)
+    plant = TrainPlant(FLAT, p)
+    plant.reset(100.0, 20.0)
+    s, v, a, _ = plant.advance(-1.0, 0.01, 3000)
+    b = p.max_brake_decel_mps2
+    stop = np.argmax(v == 0.0)
+    assert stop * 0.01 == pytest.approx(20.0 / b, abs=0.011)
+    assert s[-1] == pytest.approx(100.0 + 20.0**2 / (2 * b), abs=1e-6)
+    assert np.all(v[stop:] == 0.0) and np.all(np.diff(s) >= 0.0)
+    # on a 5 % grade traction of 10 % cannot start the train: it stays, it does not roll back
+    steep = TrainPlant(lambda s: 0.05, p)
+    steep.reset(50.0, 0.0)
+    s, v, _, _ = steep.advance(0.1, 0.01, 100)
+    assert np.all(s == 50.0) and np.all(v == 0.0)
+    # full traction does: 160 kN > 200 t * g * 0.05 = 98 kN
+    s, v, a, _ = steep.advance(1.0, 0.01, 100)
+    assert v[-1] > 0.0 and a[-1] == pytest.approx((p.max_traction_n / max(1, 1) - p.mass_kg * G0 * 0.05)
+                                                    / p.effective_mass_kg, rel=0.05)
+
+
+def _driver(obs, b=0.45, k=1.5):
+    """Braking-curve driver on the observation (the estimate), not the truth."""
+    d, v = obs[0] * 1000.0, obs[1] * 30.0
+    if obs[7] > 0:
+        return np.array([-1.0], np.float32)
+    target = min(17.0, math.sqrt(max(2 * b * max(d - 0.5, 0.0), 0.0)))
+    u = k * (target - v)
+    if d < 3.0 and v < 0.6:
+        u = -1.0 if d < 0.8 else 0.15
+    return np.array([np.clip(u, -1.0, 1.0)], np.float32)
+
+
+def test_check_env_without_warnings():
+    env = gym.make("navsim/TrainDriving-v0", **SHORT)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    assert [str(w.message) for w in caught] == []
+
+
+def test_driver_on_the_estimate_stops_at_the_mark():
+    env = gym.make("navsim/TrainDriving-v0", truth_in_info=True, **SHORT)
+    obs, info = env.reset(seed=3)
+    assert np.array_equal(info["marks_m"], [400.0, 900.0])
+    gaps = []
+    while True:
+        obs, r, term, trunc, info = env.step(_driver(obs))
+        gaps.append(abs((900.0 - info["truth"]["s"]) / 1000.0 - obs[0]) * 1000.0)  # estimate vs truth, m
+        if term or trunc:
+            break
+    assert term and not trunc and "overrun_m" not in info
+    (stop,) = info["stops"]
+    assert abs(stop["stop_error_m"]) <= 2.0
+    assert 0.0 < max(gaps) < 20.0  # the observation is the estimate: close to, not equal to, the truth
+    assert info["energy_kwh"] > 0.0 and info["episode_score"].steps == env.unwrapped.steps_done < env.unwrapped.n_steps
+
+
+def test_full_traction_overruns_and_is_penalised():
+    env = gym.make("navsim/TrainDriving-v0", **SHORT)
+    obs, info = env.reset(seed=0)
+    total = 0.0
+    while True:
+        obs, r, term, trunc, info = env.step(np.ones(1, np.float32))
+        total += r
+        if term or trunc:
+            break
+    assert term and info["overrun_m"] > 2.0 and total < -20.0
