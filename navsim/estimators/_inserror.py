@@ -79,8 +79,8 @@ registry methods and second-order rotation terms as :func:`navsim.strapdown.ins.
 and :meth:`BodyTerms.compensated` removes the current bias estimates from them linearly,
 exact to first order in the biases and for the bilinear rotation terms (derivation there);
 the remainder is of order ``b x omega' T^3`` per step. The sequential loop is the
-strapdown module's own (``navsim.strapdown.ins._run``, a private function: see the
-report asking for a public entry point). :func:`compensate_increments` removes constant
+strapdown module's own (:func:`navsim.strapdown.ins.integrate_body_terms`, run with
+``method="sequential"``). :func:`compensate_increments` removes constant
 biases from raw increments exactly (``b dt^r / r!`` per order), the reference the tests
 compare the linear form with.
 
@@ -577,35 +577,8 @@ def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float
     tests/estimators/test_ins_only.py checks that with zero bias
     :meth:`ErrorStateIns.advance` reproduces ``integrate`` exactly.
     """
-    from ..strapdown import CONING, POSITION, SCULLING
-
-    def lookup(registry, method):
-        if callable(method):
-            return method
-        try:
-            return registry[method]
-        except (KeyError, TypeError):
-            raise ConfigError("strapdown method", f"a callable or one of {sorted(registry)}", method) from None
-
-    arrays = [None if a is None else np.asarray(a, dtype=float) for a in (dtheta_sub, dv_sub, dtheta_r, dv_r)]
-    th_s, dv_s, th_r, dv_rr = arrays
-    coning, sculling, position = _ins.resolve_methods(coning, sculling, position, *arrays)
-    phi = np.asarray(lookup(CONING, coning)(th_s, th_r, dt), dtype=float)
-    dv_b = np.asarray(lookup(SCULLING, sculling)(th_s, dv_s, th_r, dv_rr, dt), dtype=float)
-    rule = position if isinstance(position, str) and position in ("rectangle", "trapezoid") else None
-    n = len(phi)
-    ds_b = None
-    if rule is None:
-        eye = np.broadcast_to(np.eye(3), (n, 3, 3))
-        ds_b = np.asarray(lookup(POSITION, position)(np.zeros((n, 3)), eye, th_s, dv_s, th_r, dv_rr, dt),
-                          dtype=float)
-    dtheta1 = th_s.sum(axis=1) if th_s is not None else th_r[:, 0]
-    dv1 = dv_s.sum(axis=1) if dv_s is not None else dv_rr[:, 0]
-    second = _cross(phi, _cross(phi, dv1))  # second-order rotation term (strapdown.ins)
-    dv_b = dv_b + second / 6.0
-    if ds_b is not None:
-        ds_b = ds_b + (dt / 24.0) * second
-    return BodyTerms(phi, dv_b, ds_b, rule, dtheta1, dv1, float(dt))
+    t = _ins.body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position)
+    return BodyTerms(t.rotvec_body, t.dv_body, t.ds_body, t.rule, t.dtheta_first, t.dv_first, float(dt))
 
 
 # ============================================================================ the engine
@@ -730,7 +703,9 @@ class ErrorStateIns:
         if self._pending is not None:
             self._start_interval(self._pending)
         quat_b, dv_b, ds_b, dv_first = body.compensated(self.gyro_bias, self.accel_bias, start, stop)
-        sol = _ins._run(self.state, quat_b, dv_b, ds_b, body.rule, self.dt, self.earth)
+        # the loop, explicitly: keeps stepping and batch bit-for-bit equal
+        sol = _ins.integrate_body_terms(self.state, quat_b, dv_b, ds_b, body.rule, self.dt, self.earth,
+                                        method="sequential")
         n = len(sol) - 1
         rows = solution_rows(sol.lat[1:], sol.lon[1:], sol.h[1:], sol.velocity_n[1:], sol.quat_nb[1:])
         # specific force in ENU per step, C(k+1) dV_k / dt (for F of the next interval)
