@@ -86,7 +86,10 @@ Modes
     (the accelerometer observer is biased one-to-one by an accelerometer bias, and a gyro
     bias integrates into the angles during an outage); Z_ax is *not* stacked into the
     epoch update (the continuous observer has already used that step's sample, so (16)
-    counts one step twice, a 1 % effect on one second's accelerometer information).
+    counts one step twice, a 1 % effect on one second's accelerometer information);
+    step-mean inputs (below). Not modelled in either mode: ionospheric and tropospheric
+    delays and multipath correlation (a standalone receiver leaves metre-level position
+    biases), IMU scale factors and misalignments (absorbed partly by the bias states).
 Any track
     The equations need lambda(phi), h(phi). A :class:`~navsim.track.PolynomialTrack` is
     used exactly; a :class:`~navsim.track.PiecewisePolynomialTrack` of degree <= 3 piece by
@@ -103,7 +106,7 @@ Any track
 Numerical choices
 -----------------
 * Inputs inside a step: navsim gives the r-fold integrals dtheta_r, dv_r (r = 1..R) of the
-  step. ``input_model="polynomial"`` (default) reconstructs omega(t) and f(t) as the
+  step. ``input_model="polynomial"`` reconstructs omega(t) and f(t) as the
   polynomial of degree R-1 whose r-fold integrals match them exactly (an R x R inversion
   of ``I_r = dt^r sum_j c_j j!/(j+r)!``), so the RK4 stages see the rates at the step
   start, middle and end and Simpson's rule on the cubic returns dtheta_1, dv_1 exactly.
@@ -123,7 +126,7 @@ Numerical choices
   ~1e-6 rad in a second, the prior is 1.7e-3 rad): the equations are stiff at the start,
   with rate ``dH K ~ 1/t``. Where ``rate x interval > stiffness_limit`` the interval is
   shortened, down to adaptive sub-steps of ``stiffness_limit / rate`` inside a step
-  (about 2 ln(rate0 dt) / stiffness_limit sub-steps in all, ~40 at the start of the
+  (about 2 ln(rate0 dt) / stiffness_limit sub-steps in all, ~30 at the start of the
   example), each with fresh coefficients and gain.
 * The Jacobians of F and H_a are analytic in the angles and V_Y and use the complex-step
   derivative in phi (exact to rounding, no subtraction error; the track polynomials and
