@@ -103,6 +103,7 @@ def test_200_resets_with_steady_memory(fmi, request):
     assert rss[1] - rss[0] < 25.0, rss  # MB over 180 episodes
 
 
+@pytest.mark.slow
 def test_host_survives_misuse_in_a_subprocess(plant2):
     """Everything above, plus instantiating many failing instances, in a fresh process."""
     code = textwrap.dedent(f"""
