@@ -222,9 +222,7 @@ def _driven_class():
             n = min(int(n_steps), self.timing.steps - k0)
             for k in range(k0, k0 + max(n, 0)):  # the state at the end of step k
                 s, v, a = self.source.step()
-                if not 0.0 <= s <= self.track.length:
-                    raise ConfigError("motion FMU s", f"an arc length in [0, {self.track.length:.1f}] m", s)
-                self.profile.push((k + 1) * self.timing.nav_period_s, s, v, a)
+                self.push_motion(s, v, a, t=(k + 1) * self.timing.nav_period_s)
             return super().advance(n_steps)
 
     _CLASS = _FmuDriven

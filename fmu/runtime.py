@@ -403,15 +403,14 @@ class PlantRuntime(_RuntimeBase):
         a = float(self.store.read("motion.accel_mps2"))
         if self.inputs_at_start:  # the state at t carried to t + h at constant acceleration
             s, v = s + v * h + 0.5 * a * h * h, v + a * h
-        length = self.sim.track.length
-        if not (0.0 <= s <= length and math.isfinite(v) and math.isfinite(a)):
-            raise FmuError(f"motion inputs: expected an arc length in [0, {length:.1f}] m and finite speed and "
-                           f"acceleration, got s = {s!r} m, speed = {v!r} m/s, accel = {a!r} m/s2")
         if new_tick % self.nav_ticks == 0:  # the time Simulator.push_motion uses for a step end
             t_push = (new_tick // self.nav_ticks) * self.timing.nav_period_s
         else:
             t_push = new_tick * self.timing.tick_s
-        self.sim.profile.push(t_push, s, v, a)
+        try:
+            self.sim.push_motion(s, v, a, t=t_push)
+        except ConfigError as exc:
+            raise FmuError(f"motion inputs: {exc}") from None
 
     def _zero_increments(self) -> None:
         for r in range(1, self.dims.orders + 1):

@@ -7,7 +7,8 @@ Sub-commands
 ``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
 ``navsim run SCENARIO --estimator NAME``     score one estimator on one episode
 ``navsim bench SCENARIO --estimators A,B``   compare estimators across seeds
-``navsim paper 000|001 [--json]``            rerun a seed paper's experiments
+``navsim paper 000|001|003 [--json]``        rerun a seed paper's experiments
+``navsim fmu build|validate|cosim|run|info``  FMUs: export navsim, import motion FMUs
 
 Exit status: 0 on success, 2 on bad input (the message names the field), 1 otherwise.
 """
@@ -164,6 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_run_parser(sub)
     add_bench_parser(sub)
+    try:
+        from .fmu.cli import add_fmu_parser
+    except ImportError:  # the FMU face is installed with the package; its extras may not be
+        pass
+    else:
+        add_fmu_parser(sub)
 
     p = sub.add_parser("paper", help="rerun a seed paper's experiments beside its printed figures")
     p.add_argument("seed_id", choices=("000", "001", "003"))

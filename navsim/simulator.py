@@ -336,14 +336,20 @@ class Simulator:
         return true_state(self.track, self.profile, t, self.oscillations)
 
     # -- external motion ---------------------------------------------------------------
-    def push_motion(self, s: float, speed: float, accel: float) -> None:
-        """Give the external motion state at the end of the next step (profile "external")."""
+    def push_motion(self, s: float, speed: float, accel: float, t: float | None = None) -> None:
+        """Give the external motion state (profile "external").
+
+        By default the state is at the end of the next step; ``t`` (s) places it at any
+        later time instead (e.g. an FMU communication point several steps ahead).
+        """
         if not isinstance(self.profile, ExternalMotion):
             raise ConfigError("motion.profile", "'external' to push motion samples", self.scenario.motion.profile)
         self._require_reset()
         if not 0.0 <= s <= self.track.length:
             raise ConfigError("motion.external.s", f"an arc length in [0, {self.track.length:.1f}] m", s)
-        self.profile.push((self.step_index + 1) * self.timing.nav_period_s, s, speed, accel)
+        if t is None:
+            t = (self.step_index + 1) * self.timing.nav_period_s
+        self.profile.push(t, s, speed, accel)
 
     # -- generation --------------------------------------------------------------------
     def advance(self, n_steps: int = 1) -> Chunk:

@@ -55,7 +55,7 @@ def test_bad_parameters_give_a_fatal_status_naming_the_field(fmi, params, field,
         if field is None:  # a valid start, then an input off the track: refused at the step that uses it
             inst.initialize(params)
             inst.set({"motion.s_m": 1e9})
-            with pytest.raises(FmuCallError, match="motion inputs: expected an arc length"):
+            with pytest.raises(FmuCallError, match="motion inputs: motion.external.s: expected an arc length"):
                 inst.do_step(0.0, 0.01)
         else:
             with pytest.raises(FmuCallError, match=rf"\(fatal\): bad parameter value: .*{field}"):
