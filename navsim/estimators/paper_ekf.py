@@ -422,12 +422,6 @@ def input_polynomial_matrix(orders: int) -> np.ndarray:
 
 
 # ============================================================================ helpers
-def _enu_rows_paper(phi, psi, sin=math.sin, cos=math.cos):
-    """Rows e, n, u of B = D(-phi, psi, 0) in paper axes (xi, eta, zeta) (east, north, up)."""
-    sp, cp, ss, cs = sin(phi), cos(phi), sin(psi), cos(psi)
-    return (cs, 0.0, -ss), (-ss * sp, cp, -cs * sp), (ss * cp, sp, cs * cp)
-
-
 def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float) -> np.ndarray:
     """The paper's state [alpha, beta, gamma, phi, V_Y] of a navigation solution, (n, 5).
 
