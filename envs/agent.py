@@ -101,12 +101,13 @@ class EstimatorAgent:
         gnss = None
         if obs["gnss_new_epoch"][0]:
             gnss = GnssObservation(
-                t=t, prn=self._prn, sat_pos_e=obs["sat_pos_e"], sat_vel_e=obs["sat_vel_e"],
+                t=t, prn=self._prn, sat_pos_e=obs["sat_pos_e"].reshape(-1, 3), sat_vel_e=obs["sat_vel_e"].reshape(-1, 3),
                 pseudorange_m=obs["pseudorange_m"], pseudorange_rate_mps=obs["pseudorange_rate_mps"],
                 valid=np.asarray(obs["gnss_valid"], dtype=bool),
             )
-        m = Measurement(step=self._step, t=t, dt=self._dt, dtheta_r=obs["dtheta_r"], dv_r=obs["dv_r"],
-                        dtheta_sub=obs["dtheta_sub"], dv_sub=obs["dv_sub"], gnss=gnss)
+        m = Measurement(step=self._step, t=t, dt=self._dt, dtheta_r=obs["dtheta_r"].reshape(-1, 3),
+                        dv_r=obs["dv_r"].reshape(-1, 3), dtheta_sub=obs["dtheta_sub"].reshape(-1, 3),
+                        dv_sub=obs["dv_sub"].reshape(-1, 3), gnss=gnss)
         self._step += 1
         return m
 

@@ -126,10 +126,11 @@ def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: in
     else:
         valid, gnss = None, (None, None, None, None)
     valid = None if valid is None else _frozen(valid)
-    gnss = tuple(None if x is None else _frozen(x) for x in gnss)
+    gnss = tuple(None if x is None else _frozen(x.reshape(x.shape[0], int(np.prod(x.shape[1:])))) for x in gnss)  # 1-D per row
     return PreparedChunk(
-        n=n, step0=chunk.step0, t=_frozen(chunk.t[:, None]), dtheta_r=_frozen(imu.dtheta_r), dv_r=_frozen(imu.dv_r),
-        dtheta_sub=_frozen(imu.dtheta_sample[:, :, 0, :]), dv_sub=_frozen(imu.dv_sample[:, :, 0, :]),
+        n=n, step0=chunk.step0, t=_frozen(chunk.t[:, None]), dtheta_r=_frozen(imu.dtheta_r.reshape(n, -1)),
+        dv_r=_frozen(imu.dv_r.reshape(n, -1)), dtheta_sub=_frozen(imu.dtheta_sample[:, :, 0, :].reshape(n, -1)),
+        dv_sub=_frozen(imu.dv_sample[:, :, 0, :].reshape(n, -1)),
         epoch_at=epoch_at.tolist(), new_epoch=_frozen(new_epoch), valid=valid, pseudorange_m=gnss[0], pseudorange_rate_mps=gnss[1],
         sat_pos_e=gnss[2], sat_vel_e=gnss[3], truth=truth, truth_rows=truth.tolist() if rows else [],
         receiver_outage=outage.astype(bool).tolist(), n_valid=n_valid.astype(int).tolist(),

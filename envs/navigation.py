@@ -186,11 +186,11 @@ class NavigationEnv(gym.Env):
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()
         self._s_lat, self._s_lon, self._s_h = (float(x) for x in self.action_scale[:3])
         R, m = self.scenario.imu.orders, timing.samples_per_step
-        self._terminal_obs = {"t": np.array([timing.duration_s]), "dtheta_r": np.zeros((R, 3)), "dv_r": np.zeros((R, 3)),
-                              "dtheta_sub": np.zeros((m, 3)), "dv_sub": np.zeros((m, 3)),
+        self._terminal_obs = {"t": np.array([timing.duration_s]), "dtheta_r": np.zeros(3 * R), "dv_r": np.zeros(3 * R),
+                              "dtheta_sub": np.zeros(3 * m), "dv_sub": np.zeros(3 * m),
                               "gnss_new_epoch": np.zeros(1, dtype=np.int8), "gnss_valid": np.zeros(k, dtype=np.int8),
                               "pseudorange_m": np.zeros(k), "pseudorange_rate_mps": np.zeros(k),
-                              "sat_pos_e": np.zeros((k, 3)), "sat_vel_e": np.zeros((k, 3))}
+                              "sat_pos_e": np.zeros(3 * k), "sat_vel_e": np.zeros(3 * k)}
         self._config = {"scenario": self.scenario.name, "config_hash": self.scenario.config_hash(),
                         "scenario_toml": self.scenario.to_toml()}
         self._pc: PreparedChunk | None = None

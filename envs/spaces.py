@@ -7,20 +7,22 @@ The observation is the sensor data of one navigation step ``[t - dt, t]`` as a
 key                         shape          meaning
 ==========================  =============  =====================================================
 ``t``                       (1,)           step end time, s
-``dtheta_r``                (R, 3)         r-fold integrals of the angular rate over the step
-                                           (seed 000 eq. 1.14), rad s^(r-1); row 0 = dTheta
-``dv_r``                    (R, 3)         the same of the specific force, m/s s^(r-1)
-``dtheta_sub``              (m, 3)         first-order gyro increments of the m IMU samples, rad
-``dv_sub``                  (m, 3)         first-order accelerometer increments, m/s
+``dtheta_r``                (3R,)          r-fold integrals of the angular rate over the step
+                                           (seed 000 eq. 1.14), rad s^(r-1); [0:3] = dTheta
+``dv_r``                    (3R,)          the same of the specific force, m/s s^(r-1)
+``dtheta_sub``              (3m,)          first-order gyro increments of the m IMU samples, rad
+``dv_sub``                  (3m,)          first-order accelerometer increments, m/s
 ``gnss_new_epoch``          (1,) int8      1 when a GNSS epoch falls at this step end
 ``gnss_valid``              (k,) int8      channel validity mask (0 between epochs)
 ``pseudorange_m``           (k,)           pseudorange per channel, m (0 between epochs)
 ``pseudorange_rate_mps``    (k,)           Doppler as pseudorange rate, m/s
-``sat_pos_e``               (k, 3)         satellite ECEF position, m
-``sat_vel_e``               (k, 3)         satellite ECEF velocity, m/s
+``sat_pos_e``               (3k,)          satellite ECEF position, m
+``sat_vel_e``               (3k,)          satellite ECEF velocity, m/s
 ==========================  =============  =====================================================
 
-k is the number of satellites of the scenario's constellation (channel j is always the
+Vectors are flattened row by row (``obs["dtheta_r"].reshape(R, 3)`` gives the (R, 3)
+array of :class:`navsim.estimators.base.Measurement`): every entry is 1-D, as RL
+libraries prefer. k is the number of satellites of the scenario's constellation (channel j is always the
 same PRN, ``info["gnss_prn"][j]``). Between epochs the GNSS entries are zero with
 ``gnss_valid == 0``; at an epoch, invalid channels hold finite but meaningless values.
 
@@ -93,16 +95,16 @@ def observation_space(timing, orders: int, n_sats: int) -> spaces.Dict:
     dt, h, m = timing.nav_period_s, timing.imu_period_s, timing.samples_per_step
     return spaces.Dict({
         "t": spaces.Box(0.0, float(timing.duration_s), shape=(1,), dtype=np.float64),
-        "dtheta_r": _box(_integral_bounds(MAX_RATE_RAD_S, dt, orders)),
-        "dv_r": _box(_integral_bounds(MAX_FORCE_MPS2, dt, orders)),
-        "dtheta_sub": _box(np.full((m, 3), MAX_RATE_RAD_S * h)),
-        "dv_sub": _box(np.full((m, 3), MAX_FORCE_MPS2 * h)),
+        "dtheta_r": _box(_integral_bounds(MAX_RATE_RAD_S, dt, orders).ravel()),
+        "dv_r": _box(_integral_bounds(MAX_FORCE_MPS2, dt, orders).ravel()),
+        "dtheta_sub": _box(np.full(3 * m, MAX_RATE_RAD_S * h)),
+        "dv_sub": _box(np.full(3 * m, MAX_FORCE_MPS2 * h)),
         "gnss_new_epoch": spaces.MultiBinary(1),
         "gnss_valid": spaces.MultiBinary(n_sats),
         "pseudorange_m": _box(np.full(n_sats, MAX_RANGE_M)),
         "pseudorange_rate_mps": _box(np.full(n_sats, MAX_RANGE_RATE_MPS)),
-        "sat_pos_e": _box(np.full((n_sats, 3), MAX_RANGE_M)),
-        "sat_vel_e": _box(np.full((n_sats, 3), MAX_SAT_SPEED_MPS)),
+        "sat_pos_e": _box(np.full(3 * n_sats, MAX_RANGE_M)),
+        "sat_vel_e": _box(np.full(3 * n_sats, MAX_SAT_SPEED_MPS)),
     })
 
 

@@ -90,15 +90,15 @@ class SharedTruth:
 
 
 def _default_chunk(num_envs: int) -> int:
-    """Steps per chunk: about 2^18 env-steps buffered, within [100, 4000]."""
-    return int(min(4000, max(100, 2**18 // max(num_envs, 1))))
+    """Steps per chunk: about 2^19 env-steps buffered (about 300 MB), within [100, 4000]."""
+    return int(min(4000, max(100, 2**19 // max(num_envs, 1))))
 
 
 class NavigationVectorEnv(gym.vector.VectorEnv):
     """N navigation episodes of one scenario in one NumPy pass (see the module docstring).
 
     Parameters are those of :class:`~navsim.envs.navigation.NavigationEnv` plus
-    ``num_envs``; ``chunk_steps`` defaults to about 2^18 / N (memory bound), and
+    ``num_envs``; ``chunk_steps`` defaults to about 2^19 / N (memory bound), and
     ``share_truth`` (default True) switches the shared truth generator.
     """
 
@@ -236,8 +236,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         n, k = self.num_envs, self.n_sats
         if j < 0:
             gnss = {"gnss_valid": np.zeros((n, k), dtype=np.int8), "pseudorange_m": np.zeros((n, k)),
-                    "pseudorange_rate_mps": np.zeros((n, k)), "sat_pos_e": np.zeros((n, k, 3)),
-                    "sat_vel_e": np.zeros((n, k, 3))}
+                    "pseudorange_rate_mps": np.zeros((n, k)), "sat_pos_e": np.zeros((n, 3 * k)),
+                    "sat_vel_e": np.zeros((n, 3 * k))}
         else:
             gnss = {"gnss_valid": self._valid[j], "pseudorange_m": self._pr[j], "pseudorange_rate_mps": self._prr[j],
                     "sat_pos_e": self._sat_pos[j], "sat_vel_e": self._sat_vel[j]}

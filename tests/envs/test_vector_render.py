@@ -137,12 +137,12 @@ def test_record_video(tmp_path):
     from gymnasium.wrappers import RecordVideo
 
     env = gym.make("navsim/PaperRail-v0", render_mode="rgb_array", timing={"duration_s": 0.3})
-    env = RecordVideo(env, str(tmp_path), episode_trigger=lambda e: True, disable_logger=True)
+    env = RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda e: True, disable_logger=True)
     env.reset(seed=0)
     done = False
     while not done:
         *_, term, trunc, _ = env.step(np.zeros(9))
         done = term or trunc
     env.close()
-    videos = list(tmp_path.glob("*.mp4"))
+    videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000

@@ -1,0 +1,108 @@
+"""Speed of the Gymnasium face, side by side with CartPole in the same process.
+
+Rows
+----
+* ``CartPole-v1`` through ``gym.make`` (Gymnasium's reference; constant action, reset at
+  episode end);
+* ``navsim/PaperRail-v0`` through ``gym.make`` (constant action; an episode is 100 000
+  steps) and unwrapped;
+* the native vector env (``vectorization_mode="vector_entry_point"``) at N = 64 and
+  N = 1024, and Gymnasium's ``SyncVectorEnv`` at N = 64 for comparison, in env-steps per
+  second. Timed windows always include simulator chunk generation (at least two chunk
+  rounds); ``score=False`` (no episode record: scoring costs memory, not step time).
+
+Timing: alternating windows, the median of ``--rounds`` windows per row; the machine's
+load average is printed (the machine may be shared).
+
+Usage: ``python benchmarks/bench_env.py [--rounds 3] [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import navsim.envs  # noqa: F401  (registers the ids)
+
+
+def _single_rate(env, action, seconds: float) -> float:
+    step = env.step
+    n = 0
+    t0 = time.perf_counter()
+    deadline = t0 + seconds
+    while True:
+        for _ in range(1000):
+            _, _, term, trunc, _ = step(action)
+            if term or trunc:
+                env.reset()
+        n += 1000
+        now = time.perf_counter()
+        if now >= deadline:
+            return n / (now - t0)
+
+
+def _vector_rate(venv, steps: int) -> float:
+    n = venv.num_envs
+    action = np.zeros((n, 9))
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        venv.step(action)
+    return steps * n / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--seconds", type=float, default=2.0, help="length of a single-env window")
+    parser.add_argument("--quick", action="store_true", help="one round, short windows, N = 64 only")
+    args = parser.parse_args()
+    rounds = 1 if args.quick else args.rounds
+    seconds = 0.5 if args.quick else args.seconds
+
+    cart = gym.make("CartPole-v1")
+    cart.reset(seed=0)
+    nav = gym.make("navsim/PaperRail-v0", score=False)
+    nav.reset(seed=0)
+    raw = gym.make("navsim/PaperRail-v0", score=False).unwrapped
+    raw.reset(seed=0)
+    zero = np.zeros(9)
+    rates: dict[str, list[float]] = {"CartPole-v1 (gym.make)": [], "navsim/PaperRail-v0 (gym.make)": [],
+                                     "navsim/PaperRail-v0 (unwrapped)": []}
+    for _ in range(rounds):
+        rates["CartPole-v1 (gym.make)"].append(_single_rate(cart, 0, seconds))
+        rates["navsim/PaperRail-v0 (gym.make)"].append(_single_rate(nav, zero, seconds))
+        rates["navsim/PaperRail-v0 (unwrapped)"].append(_single_rate(raw, zero, seconds))
+    cart.close(), nav.close(), raw.close()
+    single = statistics.median(rates["navsim/PaperRail-v0 (gym.make)"])
+    cartpole = statistics.median(rates["CartPole-v1 (gym.make)"])
+
+    vector_rows = [("native vector env, N = 64", 64, "vector_entry_point"),
+                   ("SyncVectorEnv, N = 64", 64, "sync")]
+    if not args.quick:
+        vector_rows.append(("native vector env, N = 1024", 1024, "vector_entry_point"))
+    for label, n, mode in vector_rows:
+        venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False)
+        venv.reset(seed=0)
+        chunk = getattr(venv.unwrapped, "chunk_steps", 4000)
+        steps = 2 * chunk + 10 if not args.quick else chunk + 10
+        if mode == "sync":
+            steps = min(steps, 3000)
+        rates[label] = [_vector_rate(venv, steps) for _ in range(1 if n >= 1024 or mode == "sync" else rounds)]
+        venv.close()
+
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; median of {rounds} window(s)")
+    header = f"{'':38s} {'steps/s':>12s} {'x CartPole':>11s} {'x single env':>13s}"
+    print(header)
+    print("-" * len(header))
+    for label, values in rates.items():
+        rate = statistics.median(values)
+        print(f"{label:38s} {rate:12,.0f} {rate / cartpole:11.2f} {rate / single:13.2f}")
+
+
+if __name__ == "__main__":
+    main()
