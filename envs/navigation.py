@@ -153,7 +153,7 @@ class NavigationEnv(gym.Env):
 
     def __init__(self, scenario: str | Scenario = "paper-2012", *, render_mode: str | None = None,
                  truth_in_info: bool = False, reward_weights=(1.0, 0.0, 0.0), reward_cap: float = 1e4,
-                 score: bool = True, chunk_steps: int = 4000, physical_action: bool = False,
+                 score: bool = True, chunk_steps: int = 10_000, physical_action: bool = False,
                  **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
