@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from navsim.episode import make_context, measurement_batch, measurements
+from navsim.episode import make_context, measurement_batch
 from navsim.estimators import available, make
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator

@@ -314,7 +314,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             tape.actions.extend(block[:, j].tolist())
 
     def _terminal_obs(self) -> dict:
-        n, k = self.num_envs, self.n_sats
+        n = self.num_envs
         sp = self.single_observation_space
         obs = {key: np.zeros((n, *sp[key].shape), dtype=sp[key].dtype) for key in sp}
         obs["t"][:] = self.scenario.timing.duration_s

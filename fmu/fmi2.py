@@ -19,7 +19,7 @@ from __future__ import annotations
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from .runtime import EstimatorRuntime, FmuError, PlantRuntime
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues
 
 __all__ = ["PlantSlave", "EstimatorSlave", "pin_module_dict"]
 
@@ -59,15 +59,7 @@ def _mark_failed(slave) -> None:
             rt.sim = rt.estimator = None
 
 
-def _zeros(slave, vrs, type_):
-    zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
-    try:
-        return [zero] * len(slave.rt.store.get(vrs, type_))
-    except Exception:
-        return [zero] * len(vrs)
-
-
-class _Slave(Fmi2Slave):
+class _Slave(SlaveValues, Fmi2Slave):
     runtime_class = None
 
     def __init__(self, **kwargs):
@@ -105,27 +97,6 @@ class _Slave(Fmi2Slave):
             self.log(f"doStep failed: {type(exc).__name__}: {exc}", Fmi2Status.error)
             return False
         return True
-
-    def terminate(self):
-        if not self._failed:
-            self.rt.terminate()
-
-    # -- values ------------------------------------------------------------------------------
-    def _get(self, vrs, type_):
-        if self._failed:
-            return _zeros(self, vrs, type_)
-        try:
-            return self.rt.store.get(vrs, type_)
-        except FmuError as exc:
-            self._fail(str(exc))
-
-    def _set(self, vrs, values, type_):
-        if self._failed:
-            return
-        try:
-            self.rt.store.set(vrs, values, type_, self.rt.settable())
-        except FmuError as exc:
-            self._fail(str(exc))
 
     def get_real(self, vrs):
         return self._get(vrs, "real")

@@ -13,7 +13,7 @@ from pythonfmu3 import Fmi3Slave
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
-from .runtime import EstimatorRuntime, FmuError, PlantRuntime
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues
 
 __all__ = ["PlantSlave", "EstimatorSlave"]
 
@@ -38,15 +38,7 @@ def _mark_failed(slave) -> None:
             rt.sim = rt.estimator = None
 
 
-def _zeros(slave, vrs, type_):
-    zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
-    try:
-        return [zero] * len(slave.rt.store.get(vrs, type_))
-    except Exception:
-        return [zero] * len(vrs)
-
-
-class _Slave(Fmi3Slave):
+class _Slave(SlaveValues, Fmi3Slave):
     runtime_class = None
 
     def __init__(self, **kwargs):
@@ -86,26 +78,6 @@ class _Slave(Fmi3Slave):
         self.time = current_time + step_size
         self.rt.store.values[0] = self.time
         return Fmi3StepResult()
-
-    def terminate(self):
-        if not self._failed:
-            self.rt.terminate()
-
-    def _get(self, vrs, type_):
-        if self._failed:
-            return _zeros(self, vrs, type_)
-        try:
-            return self.rt.store.get(vrs, type_)
-        except FmuError as exc:
-            self._fail(str(exc))
-
-    def _set(self, vrs, values, type_):
-        if self._failed:
-            return
-        try:
-            self.rt.store.set(vrs, values, type_, self.rt.settable())
-        except FmuError as exc:
-            self._fail(str(exc))
 
     def get_float64(self, vrs):
         return self._get(vrs, "real")

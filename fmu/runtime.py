@@ -579,3 +579,39 @@ class EstimatorRuntime(_RuntimeBase):
         w("nav.covariance", cov)
         w("nav.nis", math.nan if est.nis is None else float(est.nis))
         w("nav.nis_dof", int(est.nis_dof or 0) if est.nis is not None else 0)
+
+
+class SlaveValues:
+    """Value access shared by the FMI 2 and FMI 3 slave classes (a mixin).
+
+    A failed instance (see the failure protocol in ``fmi2.py``) answers reads with zeros
+    and ignores writes; otherwise :class:`FmuError` from the store marks it failed.
+    Subclasses provide ``rt`` (a runtime), ``_failed`` and ``_fail(message)``.
+    """
+
+    def _zeros(self, vrs, type_):
+        zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+        try:
+            return [zero] * len(self.rt.store.get(vrs, type_))
+        except Exception:
+            return [zero] * len(vrs)
+
+    def _get(self, vrs, type_):
+        if self._failed:
+            return self._zeros(vrs, type_)
+        try:
+            return self.rt.store.get(vrs, type_)
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def _set(self, vrs, values, type_):
+        if self._failed:
+            return
+        try:
+            self.rt.store.set(vrs, values, type_, self.rt.settable())
+        except FmuError as exc:
+            self._fail(str(exc))
+
+    def terminate(self):
+        if not self._failed:
+            self.rt.terminate()

@@ -33,7 +33,7 @@ gives their SI base-unit exponents).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 __all__ = [
     "Var",

@@ -46,6 +46,7 @@ Missing data
 
 from __future__ import annotations
 
+import sys
 from importlib.metadata import PackageNotFoundError, version
 
 from . import earth, errors, rotations
@@ -55,4 +56,23 @@ try:
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+unknown"
 
-__all__ = ["earth", "errors", "rotations", "__version__"]
+__all__ = ["earth", "errors", "rotations", "evaluate", "__version__"]
+
+# The core never imports Gymnasium. When the user has imported it already
+# (``import gymnasium as gym, navsim``), register the navsim env ids now, at no cost;
+# otherwise ``import navsim.envs`` registers them.
+if "gymnasium" in sys.modules:
+    try:
+        from .envs import register_envs as _register_envs
+    except ImportError:  # pragma: no cover - a broken optional install must not break the core
+        pass
+    else:
+        _register_envs()
+
+
+def __getattr__(name: str):
+    if name == "evaluate":  # lazily: it lives in the Gymnasium face
+        from .envs import evaluate
+
+        return evaluate
+    raise AttributeError(f"module 'navsim' has no attribute {name!r}")

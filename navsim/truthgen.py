@@ -156,7 +156,7 @@ class TruthGenerator:
     # ------------------------------------------------------------------ block method
     def _blocks(self, k0: int, k1: int) -> IdealSamples:
         """Blocks k0 .. k1 - 1, all fitted in one vectorised pass; the newest is cached."""
-        b, h, R, n_cheb = self.block, self.h, self.orders, self.cheb_nodes
+        b, h = self.block, self.h
         cached = self._cache.get(k0)
         if cached is not None and k1 == k0 + 1:
             return cached

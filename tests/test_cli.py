@@ -1,10 +1,8 @@
 """The navsim command: simulate to NPZ/CSV with the documented layout, show, errors."""
 
 import csv
-import json
 
 import numpy as np
-import pytest
 
 from navsim.cli import main
 from navsim.io import GNSS_KEYS, STEP_KEYS

@@ -6,7 +6,6 @@ trajectory numerically in the *inertial* frame (ECEF rotated by Omega t) and com
 with what the motion module computes analytically from the track geometry.
 """
 
-import math
 
 import numpy as np
 import pytest

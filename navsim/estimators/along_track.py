@@ -529,7 +529,7 @@ class AlongTrackFilter:
         use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m)
         if not use.any():
             return None, 0
-        opt, gnss = self.options, self.context.gnss
+        opt = self.options
         x, P = self.x, self.P
         s, v = float(x[0]), float(x[1])
         if opt.update == "pseudorange":

@@ -7,7 +7,7 @@ import pytest
 
 gym = pytest.importorskip("gymnasium")
 
-import navsim.envs as ne  # noqa: E402
+import navsim.envs  # noqa: E402, F401  (registers the ids)
 from navsim.envs.render import HEIGHT, WIDTH  # noqa: E402
 from navsim.envs.spaces import solution_to_action  # noqa: E402
 from navsim.envs.vector import NavigationVectorEnv, SharedTruth  # noqa: E402

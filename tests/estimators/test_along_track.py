@@ -192,7 +192,6 @@ def test_one_satellite_is_enough_on_the_map():
     pr = run_episode(sc, OneSat(AlongTrackFilter()), seed=2)
     fix = run_episode(sc, OneSat(AlongTrackFilter(update="fix")), seed=2)
     ds_pr = _along_errors(pr)[0]
-    ds_fix = _along_errors(fix)[0]
     assert np.all(np.isnan(fix.nis))  # no fix possible: never updated
     assert np.count_nonzero(~np.isnan(pr.nis)) == 60
     # the prior's sigma is 15 m; with 60 single-satellite epochs it must shrink

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 
 from navsim.fmu.variables import (UNITS, Dimensions, Var, action_variables, estimator_variables,
                                   observation_variables, plant_variables, scalar_names)
