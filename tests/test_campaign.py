@@ -1,0 +1,264 @@
+"""navsim.campaign: spec validation, SQLite results, resume, failures, report, Dask with a lost worker."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sqlite3
+import time
+
+import numpy as np
+import pytest
+
+from navsim import campaign as cp
+from navsim.errors import ConfigError
+from navsim.metrics import score_episode
+from navsim.report import run_one
+
+SPEC = """
+[campaign]
+name = "tiny"
+seeds = "0:3"
+[overrides]
+timing = { duration_s = 20.0 }
+outages = { windows_s = [[8.0, 14.0]] }
+[[scenarios]]
+name = "paper-2012"
+label = "short"
+[[estimators]]
+name = "gnss-ls"
+[[estimators]]
+name = "along-track"
+"""
+
+
+def _spec(tmp_path, text=SPEC, name="camp.toml"):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return cp.load_campaign(path)
+
+
+def _db_rows(spec):
+    con = sqlite3.connect(str(spec.database))
+    try:
+        return con.execute("SELECT scenario_hash, estimator, options, seed, status, scores FROM episodes").fetchall()
+    finally:
+        con.close()
+
+
+def _comparable(scores: dict) -> dict:
+    return {k: v for k, v in scores.items() if k not in cp.CPU_FIELDS}
+
+
+# ---------------------------------------------------------------------------- spec
+def test_spec_resolves_scenarios_estimators_and_paths(tmp_path):
+    spec = _spec(tmp_path)
+    assert spec.name == "tiny" and spec.seeds == (0, 1, 2) and spec.size == 6
+    sc = spec.scenarios[0]
+    assert sc.label == "short" and sc.scenario.timing.duration_s == 20.0
+    assert sc.config_hash == sc.scenario.config_hash()
+    assert [e.label for e in spec.estimators] == ["gnss-ls", "along-track"]
+    assert spec.database == tmp_path / "camp.sqlite" and spec.report_dir == tmp_path / "camp_report"
+    keys = [t.key for t in cp.episode_tasks(spec)]
+    assert len(set(keys)) == 6
+
+
+@pytest.mark.parametrize("patch, field", [
+    (('seeds = "0:3"', 'seeds = "3:1"'), "campaign.seeds"),
+    (('seeds = "0:3"', 'seeds = [1, 1]'), "campaign.seeds"),
+    (('name = "gnss-ls"', 'name = "no-such-filter"'), "estimators[0].name"),
+    (('label = "short"', 'label = "short"\ncolour = 3'), "scenarios[0].colour"),
+    (('name = "paper-2012"', 'name = "no-such-scenario"'), "scenarios[0]: scenario"),
+    (("duration_s = 20.0", "duration_s = -1.0"), "scenarios[0]: timing.duration_s"),
+    (('name = "along-track"', 'name = "gnss-ls"'), "estimators[1].label"),
+    (('name = "tiny"', 'name = "tiny"\ninterval = "bootstrap"'), "campaign.interval"),
+])
+def test_spec_errors_name_the_field(tmp_path, patch, field):
+    with pytest.raises(ConfigError) as info:
+        _spec(tmp_path, SPEC.replace(*patch, 1))
+    assert info.value.field == field
+    assert info.value.source == "camp.toml"
+
+
+def test_estimator_options_enter_key_and_label(tmp_path):
+    text = SPEC.replace('name = "along-track"', 'name = "gnss-ls"\noptions = { }\nlabel = "ls2"', 1)
+    with pytest.raises(ConfigError) as info:  # same estimator, same options twice
+        _spec(tmp_path, text)
+    assert info.value.field == "estimators[1]"
+    spec = _spec(tmp_path, text.replace("options = { }", 'options = { "min_satellites" = 5 }'))
+    assert [e.options_json for e in spec.estimators] == ["{}", '{"min_satellites":5}']
+
+
+# ---------------------------------------------------------------------------- running
+def test_local_campaign_equals_navsim_run_and_rerun_skips_everything(tmp_path):
+    spec = _spec(tmp_path)
+    res = cp.run_campaign(spec, workers=2, progress=False)
+    assert (res.total, res.skipped, res.ran, res.failed) == (6, 0, 6, 0)
+    rows = cp.read_rows(spec.database, spec)
+    assert len(rows) == 6 and {r["status"] for r in rows} == {"ok"}
+    assert len({r["worker"] for r in rows}) >= 1
+    # independent path: navsim run's function on the same resolved scenario
+    scenario = spec.scenarios[0].scenario
+    for r in rows:
+        direct = score_episode(run_one(scenario, r["estimator"], r["seed"])).to_flat_dict()
+        assert _comparable(r["scores"]) == _comparable(direct)
+    seeds = {(r["estimator"], r["seed"]): r["scores"]["horizontal_rmse_m"] for r in rows}
+    assert seeds[("gnss-ls", 0)] != seeds[("gnss-ls", 1)]
+    again = cp.run_campaign(spec, workers=2, progress=False)
+    assert (again.skipped, again.ran) == (6, 0)
+    assert len(_db_rows(spec)) == 6
+
+
+def test_resume_after_interruption_runs_only_the_missing_episodes(tmp_path):
+    spec = _spec(tmp_path)
+    seen = []
+
+    def stop_after_two(task, out):
+        seen.append(task.key)
+        if len(seen) == 2:
+            raise KeyboardInterrupt  # as if the user pressed Ctrl-C
+
+    with pytest.raises(KeyboardInterrupt):
+        cp.run_campaign(spec, workers=0, progress=False, on_result=stop_after_two)
+    first = _db_rows(spec)
+    assert len(first) == 2 and {r[:4] for r in first} == set(seen)
+    ran = []
+    res = cp.run_campaign(spec, workers=0, progress=False, on_result=lambda t, o: ran.append(t.key))
+    assert (res.skipped, res.ran) == (2, 4)
+    assert set(ran).isdisjoint(seen) and len(ran) == 4
+    rows = _db_rows(spec)
+    keys = [r[:4] for r in rows]
+    assert len(keys) == len(set(keys)) == 6
+    assert {t.key for t in cp.episode_tasks(spec)} == set(keys)
+    # the rows written before the interruption are untouched and equal a clean run
+    clean = _spec(tmp_path, SPEC.replace('name = "tiny"', 'name = "tiny"\ndatabase = "clean.sqlite"'), "clean.toml")
+    cp.run_campaign(clean, workers=0, progress=False)
+    ref = {r[:4]: _comparable(json.loads(r[5])) for r in _db_rows(clean)}
+    assert {r[:4]: _comparable(json.loads(r[5])) for r in rows} == ref
+
+
+def test_failed_episode_is_recorded_and_the_campaign_goes_on(tmp_path, monkeypatch):
+    import navsim.report
+
+    real = navsim.report.run_one
+
+    def flaky(scenario, name, seed, options=None, **kw):
+        if seed == 1 and name == "along-track":
+            raise FloatingPointError("synthetic failure")
+        return real(scenario, name, seed, options, **kw)
+
+    spec = _spec(tmp_path)
+    monkeypatch.setattr(navsim.report, "run_one", flaky)
+    res = cp.run_campaign(spec, workers=0, progress=False)
+    assert (res.ran, res.failed) == (6, 1)
+    rows = cp.read_rows(spec.database)
+    bad = [r for r in rows if r["status"] == "failed"]
+    assert len(bad) == 1 and bad[0]["seed"] == 1 and bad[0]["estimator"] == "along-track"
+    assert "FloatingPointError: synthetic failure" in bad[0]["error"] and bad[0]["scores"] is None
+    # a plain rerun keeps the failure; retry_failed replaces it by the real outcome
+    assert cp.run_campaign(spec, workers=0, progress=False).ran == 0
+    monkeypatch.setattr(navsim.report, "run_one", real)
+    res = cp.run_campaign(spec, workers=0, progress=False, retry_failed=True)
+    assert (res.ran, res.failed) == (1, 0)
+    rows = _db_rows(spec)
+    assert len(rows) == 6 and {r[4] for r in rows} == {"ok"}
+
+
+def test_a_finished_row_is_never_overwritten(tmp_path):
+    spec = _spec(tmp_path)
+    task = cp.episode_tasks(spec)[0]
+    con = cp.open_database(spec.database)
+    try:
+        ok = {"status": "ok", "scores": {"x": 1.0}, "outages": [], "samples": b"", "error": None, "wall_s": 1.0,
+              "worker": "a"}
+        cp._store(con, task, ok)
+        cp._store(con, task, dict(ok, scores={"x": 2.0}))
+        cp._store(con, task, dict(ok, status="failed", scores=None, error="late duplicate"))
+        rows = con.execute("SELECT status, scores FROM episodes").fetchall()
+    finally:
+        con.close()
+    assert rows == [("ok", json.dumps({"x": 1.0}))]
+
+
+def test_changing_the_divergence_threshold_is_refused(tmp_path):
+    spec = _spec(tmp_path)
+    cp.open_database(spec.database, 1000.0).close()
+    with pytest.raises(ConfigError) as info:
+        cp.open_database(spec.database, 50.0)
+    assert info.value.field == "campaign.divergence_threshold_m"
+
+
+# ---------------------------------------------------------------------------- report and CLI
+def test_cli_runs_and_writes_a_report_readable_in_a_browser(tmp_path, capsys):
+    path = tmp_path / "camp.toml"
+    path.write_text(SPEC, encoding="utf-8")
+    parser = argparse.ArgumentParser()
+    cp.add_campaign_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["campaign", str(path), "--report-only"])
+    with pytest.raises(ConfigError):  # no database yet
+        args.func(args)
+    args = parser.parse_args(["campaign", str(path), "--workers", "0", "-q"])
+    assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "6 episodes, 0 already" in out and "6 run now (0 failed)" in out
+    report = tmp_path / "camp_report"
+    index = (report / "index.html").read_text(encoding="utf-8")
+    assert index.startswith("<!DOCTYPE html>") and index.count("<table>") == 1
+    for png in ("short/bench_errors.png", "short/bench_outages.png"):
+        assert f'src="{png}"' in index and (report / png).stat().st_size > 5000
+    md = (report / "index.md").read_text(encoding="utf-8")
+    assert "| runs finished | | 3/3 | 3/3 |" in md
+    # the table's mean equals the mean of the stored per-episode scores
+    spec = cp.load_campaign(path)
+    vals = [r["scores"]["horizontal_rmse_m"] for r in cp.read_rows(spec.database) if r["estimator"] == "gnss-ls"]
+    summary = json.loads((report / "short" / "bench.json").read_text())["summary"]["gnss-ls"]["horizontal_rmse_m"]
+    assert summary["mean"] == pytest.approx(np.mean(vals), rel=1e-12) and summary["n"] == 3
+    args = parser.parse_args(["campaign", str(path), "--report-only", "--no-plots"])
+    assert args.func(args) == 0
+
+
+# ---------------------------------------------------------------------------- Dask
+DASK_SPEC = SPEC.replace('seeds = "0:3"', 'seeds = "0:6"').replace("duration_s = 20.0", "duration_s = 40.0")
+
+
+def test_dask_cluster_losing_a_worker_gives_every_episode_once_equal_to_local(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    spec = _spec(tmp_path, DASK_SPEC)
+    killed, after_kill = [], []
+    cluster = distributed.LocalCluster(host="127.0.0.1", processes=True, n_workers=2, threads_per_worker=1,
+                                       dashboard_address=None, silence_logs=50)
+    try:
+        with distributed.Client(cluster, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=30)
+
+            def kill_one(task, out):
+                if not killed:
+                    pids = client.run(os.getpid)
+                    pid = sorted(pids.values())[0]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                after_kill.append(task.key)
+
+            t0 = time.perf_counter()
+            res = cp.run_campaign(spec, scheduler=client, progress=False, on_result=kill_one)
+            elapsed = time.perf_counter() - t0
+            assert elapsed < 60
+            assert killed and killed[0] not in client.run(os.getpid).values()
+    finally:
+        cluster.close(timeout=30)
+    assert res.ran == spec.size and res.failed == 0
+    assert len(after_kill) == spec.size  # the kill came after the first result: the rest finished after it
+    by_killed = [r for r in cp.read_rows(spec.database) if r["worker"].endswith(f":{killed[0]}")]
+    assert len(by_killed) < spec.size - 1
+    rows = cp.read_rows(spec.database)
+    keys = [(r["scenario_hash"], r["estimator"], r["options"], r["seed"]) for r in rows]
+    assert len(keys) == len(set(keys)) == spec.size
+    local = _spec(tmp_path, DASK_SPEC.replace('name = "tiny"', 'name = "tiny"\ndatabase = "local.sqlite"'), "l.toml")
+    cp.run_campaign(local, workers=1, progress=False)
+    ref = {(r["scenario_hash"], r["estimator"], r["options"], r["seed"]): r for r in cp.read_rows(local.database)}
+    for r, k in zip(rows, keys):
+        assert _comparable(r["scores"]) == _comparable(ref[k]["scores"])
+        assert r["outages"] == ref[k]["outages"]
+        np.testing.assert_array_equal(r["samples"], ref[k]["samples"])
