@@ -8,7 +8,7 @@
     **extrapolated with the last velocity fix** (``extrapolate=True``, the default;
     ``False`` holds it). Covariance: ``sigma_rho^2 (H^T H)^-1`` and
     ``sigma_dot^2 (H^T H)^-1`` rotated to ENU, the position part growing as
-    ``P_pos + tau^2 P_vel`` while extrapolating. Before the first fix the prior is
+    ``P_pos + tau^2 P_vel + q tau^3 / 3`` while extrapolating (q: ``accel_psd``). Before the first fix the prior is
     extrapolated the same way with the prior covariance.
 :class:`GnssConstantVelocity`
     A 6-state constant-velocity Kalman filter (filterpy ``KalmanFilter``) in ECEF,
@@ -87,10 +87,19 @@ class GnssLeastSquares:
         Fewest valid channels for a fix (>= 4).
     measurement_scale : float
         Factor on the nominal pseudorange and Doppler sigmas.
+    accel_psd : float
+        White-acceleration PSD per axis, m^2/s^3, that the extrapolated covariance
+        grows with (the vehicle's unmodelled acceleration: curves, speed changes);
+        0 gives the pure constant-velocity covariance, which is overconfident through
+        long outages on a curved track.
     """
 
-    def __init__(self, extrapolate: bool = True, min_satellites: int = 4, measurement_scale: float = 1.0) -> None:
+    def __init__(self, extrapolate: bool = True, min_satellites: int = 4, measurement_scale: float = 1.0,
+                 accel_psd: float = 0.01) -> None:
         self.extrapolate = bool(extrapolate)
+        if not (accel_psd >= 0.0 and math.isfinite(accel_psd)):
+            raise ConfigError("accel_psd", "a PSD >= 0, m^2/s^3", accel_psd)
+        self.accel_psd = float(accel_psd)
         self.min_satellites = _check_min_satellites(min_satellites)
         if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
             raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
@@ -157,9 +166,12 @@ class GnssLeastSquares:
         solution[:, 3:6] = m @ self._vel_e
         solution[:, 6:] = np.nan
         covariance[:] = _covariance9(self._p_pos, self._p_vel)
-        # P_pos(tau) = P_pos + tau^2 P_vel, cov(pos, vel) = tau P_vel
-        covariance[:, :3, :3] += tau[:, None, None] ** 2 * self._p_vel
-        covariance[:, :3, 3:6] = covariance[:, 3:6, :3] = tau[:, None, None] * self._p_vel
+        # P_pos(tau) = P_pos + tau^2 P_vel + q tau^3 / 3, cov(pos, vel) = tau P_vel + q tau^2 / 2,
+        # P_vel(tau) = P_vel + q tau  (white acceleration of PSD q per axis)
+        eye, q, tt = np.eye(3), self.accel_psd, tau[:, None, None]
+        covariance[:, :3, :3] += tt**2 * self._p_vel + (q * tt**3 / 3.0) * eye
+        covariance[:, :3, 3:6] = covariance[:, 3:6, :3] = tt * self._p_vel + (q * tt**2 / 2.0) * eye
+        covariance[:, 3:6, 3:6] += (q * tt) * eye
 
 
 class GnssConstantVelocity:
