@@ -26,6 +26,13 @@ Two methods give the same quantities:
 External motion (pushed step by step) is always computed with the direct method: its
 future is unknown, and its quintic Hermite pieces join with limited smoothness.
 
+Where it pays: on the polynomial track of seed 003 at constant speed every block passes
+(about 0.8 M samples/s at 100 Hz on a quiet machine, against 0.35 M with 0.5-s blocks).
+On the bundled spline tracks the design cant follows the curvature, whose rate has a kink
+at every spline knot; the rate channels' tails then exceed the tolerance in about half
+(mountain railway) to most (urban road) of the blocks, which fall back to the direct
+method (about 30 k samples/s). A smoother track model (C^6 splines) would lift that.
+
 References
 ----------
 .. [1] Litmanovich Yu.A. (2002), seed 000, eq. (1.14).
@@ -93,7 +100,7 @@ class TruthGenerator:
     """
 
     def __init__(self, track, profile, oscillations, h: float, orders: int, n_nodes: int,
-                 t_end: float, block_s: float = 0.5, cheb_nodes: int = 24, tol: float = 1e-13):
+                 t_end: float, block_s: float = 1.0, cheb_nodes: int = 32, tol: float = 1e-13):
         self.track, self.profile, self.oscillations = track, profile, tuple(oscillations)
         self.h, self.orders, self.t_end = float(h), int(orders), float(t_end)
         self._nodes, self._weights = multiple_integral_rule(n_nodes, orders)
