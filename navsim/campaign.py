@@ -609,6 +609,7 @@ def run_campaign(spec: CampaignSpec, *, scheduler=None, workers: int | None = No
             else:
                 _run_local(todo, (os.cpu_count() or 1) if workers is None else workers, handle)
         finally:
+            bar.refresh()  # the final count and failures, whatever the refresh interval
             bar.close()
     finally:
         con.close()

@@ -139,7 +139,7 @@ def test_resume_after_interruption_runs_only_the_missing_episodes(tmp_path):
     assert {r[:4]: _comparable(json.loads(r[5])) for r in rows} == ref
 
 
-def test_failed_episode_is_recorded_and_the_campaign_goes_on(tmp_path, monkeypatch):
+def test_failed_episode_is_recorded_and_the_campaign_goes_on(tmp_path, monkeypatch, capsys):
     import navsim.report
 
     real = navsim.report.run_one
@@ -151,8 +151,10 @@ def test_failed_episode_is_recorded_and_the_campaign_goes_on(tmp_path, monkeypat
 
     spec = _spec(tmp_path)
     monkeypatch.setattr(navsim.report, "run_one", flaky)
-    res = cp.run_campaign(spec, workers=0, progress=False)
+    res = cp.run_campaign(spec, workers=0, progress=True)
     assert (res.ran, res.failed) == (6, 1)
+    bar = capsys.readouterr().err  # the tqdm bar on stderr: count, failures, time left
+    assert "6/6" in bar and "failed=1" in bar and "<00:00" in bar
     rows = cp.read_rows(spec.database)
     bad = [r for r in rows if r["status"] == "failed"]
     assert len(bad) == 1 and bad[0]["seed"] == 1 and bad[0]["estimator"] == "along-track"
@@ -263,3 +265,19 @@ def test_dask_cluster_losing_a_worker_gives_every_episode_once_equal_to_local(tm
         assert _comparable(r["scores"]) == _comparable(ref[k]["scores"])
         assert r["outages"] == ref[k]["outages"]
         np.testing.assert_array_equal(r["samples"], ref[k]["samples"])
+
+
+def test_scenario_file_relative_to_the_spec(tmp_path):
+    from navsim.scenario import load_scenario
+
+    sub = tmp_path / "scen"
+    sub.mkdir()
+    base = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 20.0}})
+    (sub / "mine.toml").write_text(base.to_toml(), encoding="utf-8")
+    text = SPEC.replace('name = "paper-2012"\nlabel = "short"', 'name = "scen/mine.toml"')
+    spec = _spec(tmp_path, text)
+    sc = spec.scenarios[0]
+    assert sc.label == "mine"
+    # the campaign overrides (same duration, outage window) on top of the file's scenario
+    expected = base.with_overrides({"outages": {"windows_s": [[8.0, 14.0]]}})
+    assert sc.config_hash == expected.config_hash()
