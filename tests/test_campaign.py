@@ -281,3 +281,34 @@ def test_scenario_file_relative_to_the_spec(tmp_path):
     # the campaign overrides (same duration, outage window) on top of the file's scenario
     expected = base.with_overrides({"outages": {"windows_s": [[8.0, 14.0]]}})
     assert sc.config_hash == expected.config_hash()
+
+
+def test_sigkill_of_the_campaign_process_loses_no_finished_row(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "camp.toml"
+    path.write_text(SPEC, encoding="utf-8")
+    code = (
+        "import os, signal, sys\n"
+        "from navsim import campaign as cp\n"
+        "n = []\n"
+        "def hook(task, out):\n"
+        "    n.append(task.seed)\n"
+        "    if len(n) == 3:\n"
+        "        os.kill(os.getpid(), signal.SIGKILL)\n"
+        "cp.run_campaign(cp.load_campaign(sys.argv[1]), workers=0, progress=False, on_result=hook)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code, str(path)], timeout=120, capture_output=True)
+    assert proc.returncode == -signal.SIGKILL
+    spec = cp.load_campaign(path)
+    con = sqlite3.connect(str(spec.database))
+    try:
+        assert con.execute("PRAGMA integrity_check").fetchone() == ("ok",)
+    finally:
+        con.close()
+    assert len(_db_rows(spec)) == 3  # every row committed before the kill is there
+    res = cp.run_campaign(spec, workers=0, progress=False)
+    assert (res.skipped, res.ran) == (3, 3)
+    keys = [r[:4] for r in _db_rows(spec)]
+    assert len(keys) == len(set(keys)) == 6
