@@ -117,7 +117,8 @@ CPU_FIELDS = ("step_time_us", "cpu_total_s", "realtime_factor")
 
 
 class CampaignInterrupted(NavsimError):
-    """The local process pool broke (a worker process died); finished rows are kept."""
+    """The campaign cannot go on: the local process pool broke (a worker process died)
+    or the Dask scheduler does not answer. The finished rows are kept."""
 
 
 # ============================================================================ specification
@@ -525,7 +526,14 @@ def _run_dask(todo: list[EpisodeTask], scheduler, handle: Callable[[EpisodeTask,
     except ImportError:
         raise DependencyNotInstalled("distributed", "campaign") from None
     own = isinstance(scheduler, str)
-    client = Client(scheduler, timeout=f"{timeout_s}s") if own else scheduler
+    if own:
+        try:
+            client = Client(scheduler, timeout=f"{timeout_s}s")
+        except (OSError, TimeoutError) as exc:
+            raise CampaignInterrupted(f"no Dask scheduler answered at {scheduler} within {timeout_s:g} s "
+                                      f"({type(exc).__name__}: {exc})") from None
+    else:
+        client = scheduler
     try:
         futures = {}
         for task in todo:

@@ -312,3 +312,11 @@ def test_sigkill_of_the_campaign_process_loses_no_finished_row(tmp_path):
     assert (res.skipped, res.ran) == (3, 3)
     keys = [r[:4] for r in _db_rows(spec)]
     assert len(keys) == len(set(keys)) == 6
+
+
+def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout():
+    pytest.importorskip("distributed")
+    t0 = time.perf_counter()
+    with pytest.raises(cp.CampaignInterrupted, match="no Dask scheduler answered at tcp://127.0.0.1:9"):
+        cp._run_dask([], "tcp://127.0.0.1:9", lambda t, o: None, timeout_s=1.0)
+    assert time.perf_counter() - t0 < 15
