@@ -7,6 +7,7 @@ Sub-commands
 ``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
 ``navsim run SCENARIO --estimator NAME``     score one estimator on one episode
 ``navsim bench SCENARIO --estimators A,B``   compare estimators across seeds
+``navsim campaign SPEC.toml [--scheduler]``  scenarios x estimators x seeds, local or on Dask
 ``navsim paper 000|001|003 [--json]``        rerun a seed paper's experiments
 ``navsim fmu build|validate|cosim|run|info``  FMUs: export navsim, import motion FMUs
 
@@ -165,6 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_run_parser(sub)
     add_bench_parser(sub)
+    from .campaign import add_campaign_parser
+
+    add_campaign_parser(sub)
     try:
         from .fmu.cli import add_fmu_parser
     except ImportError:  # the FMU face is installed with the package; its extras may not be

@@ -76,8 +76,11 @@ rotation of the track frame (heading, grade, cant) per metre of track in ENU axe
 cross-track position and velocity errors and the attitude errors other than through
 ``ds`` are zero for a vehicle on its track (the map is taken as exact); to keep the
 matrix invertible for NEES, small floors are added on the diagonal: ``position_floor_m``
-(1 mm), ``velocity_floor_mps`` (1 mm/s), ``attitude_floor_rad`` (1e-5 rad; raise it to
-the body oscillation amplitude when the scenario has one).
+(1 mm), ``velocity_floor_mps`` (1 mm/s). The attitude is the track's (heading, grade,
+cant): a gyro-free filter cannot know how the body oscillates about it, so by default its
+covariance rows are ``nan`` ("not estimated"; metrics then leave attitude out of NEES).
+Give ``attitude_floor_rad`` (e.g. the expected body oscillation amplitude) to report the
+track-mapped attitude covariance plus that floor instead.
 
 Map table: at ``reset`` the track is sampled every ``table_step_m`` (5 m) metres (finer
 where it turns sharply, see :class:`TrackTable`) and evaluated between nodes by cubic
@@ -332,7 +335,7 @@ class AlongTrackOptions:
     table_step_m: float = 5.0
     position_floor_m: float = 1e-3
     velocity_floor_mps: float = 1e-3
-    attitude_floor_rad: float = 1e-5
+    attitude_floor_rad: float | None = None
     nis_divergence: float = 50.0
     divergence_epochs: int = 10
     pseudorange_sigma_m: float | None = None
@@ -349,6 +352,8 @@ class AlongTrackOptions:
             raise ConfigError("along-track.clock", f"one of {_CLOCKS}", self.clock)
         for name in ("accel_psd_extra", "position_floor_m", "velocity_floor_mps", "attitude_floor_rad"):
             value = getattr(self, name)
+            if value is None and name == "attitude_floor_rad":
+                continue
             if not (isinstance(value, (int, float)) and value >= 0.0 and math.isfinite(value)):
                 raise ConfigError(f"along-track.{name}", "a non-negative finite number", value)
         for name in ("table_step_m", "nis_divergence"):
@@ -386,8 +391,11 @@ class AlongTrackFilter:
         Longest covariance propagation interval (default: the GNSS period).
     table_step_m : float
         Map-table node spacing, m.
-    position_floor_m, velocity_floor_mps, attitude_floor_rad : float
-        Diagonal floors of the 9 x 9 output covariance (see the module docstring).
+    position_floor_m, velocity_floor_mps : float
+        Diagonal floors of the position and velocity blocks of the 9 x 9 covariance.
+    attitude_floor_rad : float or None
+        None (default): attitude covariance nan (not estimated); a number: the
+        track-mapped attitude covariance plus this floor (see the module docstring).
     nis_divergence, divergence_epochs : float, int
         ``extra["diverged"]`` turns True when NIS / dof exceeds ``nis_divergence`` at
         that many consecutive epochs, or when the covariance stops being finite.
@@ -606,8 +614,12 @@ class AlongTrackFilter:
         J[:, 3:6, 1] = t_n
         J[:, 6:9, 0] = w_n  # psi = w_n ds
         cov = J @ P @ np.swapaxes(J, -1, -2)
-        floor = np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, opt.attitude_floor_rad**2], 3)
+        att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
+        floor = np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3)
         cov = cov + np.diag(floor)
+        if opt.attitude_floor_rad is None:  # attitude not estimated: the map's, not the body's
+            cov[:, 6:9, :] = np.nan
+            cov[:, :, 6:9] = np.nan
         return sol, cov
 
     def _check_health(self) -> None:

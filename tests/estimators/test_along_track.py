@@ -118,7 +118,7 @@ def test_batch_equals_step_and_both_update_modes():
         a = run_episode(sc, AlongTrackFilter(**opts), seed=3, use_batch=True)
         b = run_episode(sc, AlongTrackFilter(**opts), seed=3, use_batch=False)
         assert np.allclose(a.est_lat, b.est_lat, rtol=0, atol=1e-12)
-        assert np.allclose(a.est_cov, b.est_cov, rtol=1e-10, atol=1e-14)
+        assert np.allclose(a.est_cov, b.est_cov, rtol=1e-10, atol=1e-14, equal_nan=True)
         assert np.array_equal(np.isnan(a.nis), np.isnan(b.nis))
         assert np.allclose(a.nis[~np.isnan(a.nis)], b.nis[~np.isnan(b.nis)])
 
