@@ -104,23 +104,11 @@ class _Slave(SlaveValues, Fmi2Slave):
     def get_integer(self, vrs):
         return self._get(vrs, "int")
 
-    def get_boolean(self, vrs):
-        return self._get(vrs, "bool")
-
-    def get_string(self, vrs):
-        return self._get(vrs, "string")
-
     def set_real(self, vrs, values):
         self._set(vrs, values, "real")
 
     def set_integer(self, vrs, values):
         self._set(vrs, values, "int")
-
-    def set_boolean(self, vrs, values):
-        self._set(vrs, [bool(v) for v in values], "bool")
-
-    def set_string(self, vrs, values):
-        self._set(vrs, values, "string")
 
 
 class PlantSlave(_Slave):

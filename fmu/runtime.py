@@ -615,3 +615,16 @@ class SlaveValues:
     def terminate(self):
         if not self._failed:
             self.rt.terminate()
+
+    # the accessors whose names FMI 2 and FMI 3 share (the others are in fmi2.py / fmi3.py)
+    def get_boolean(self, vrs):
+        return self._get(vrs, "bool")
+
+    def get_string(self, vrs):
+        return self._get(vrs, "string")
+
+    def set_boolean(self, vrs, values):
+        self._set(vrs, [bool(v) for v in values], "bool")
+
+    def set_string(self, vrs, values):
+        self._set(vrs, values, "string")
