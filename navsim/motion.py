@@ -227,35 +227,44 @@ class ExternalMotion:
     """
 
     def __init__(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0):
-        self._t = [float(t0)]
-        self._x = [(float(s0), float(speed0), float(accel0))]
+        # growing buffers (capacity doubles), so pushing and evaluating stay O(1) / O(log n)
+        self._tbuf = np.empty(1024)
+        self._xbuf = np.empty((1024, 3))
+        self._n = 1
+        self._tbuf[0] = float(t0)
+        self._xbuf[0] = (float(s0), float(speed0), float(accel0))
 
     def push(self, t: float, s: float, speed: float, accel: float) -> None:
         """Append the motion state at time t (> the last sample's time)."""
         values = (float(s), float(speed), float(accel))
         if not all(math.isfinite(v) for v in values):
             raise ConfigError("motion.external", "finite arc length, speed and acceleration", values)
-        if not t > self._t[-1]:
-            raise ConfigError("motion.external.t", f"a time after {self._t[-1]}", t)
-        self._t.append(float(t))
-        self._x.append(values)
+        last = self._tbuf[self._n - 1]
+        if not t > last:
+            raise ConfigError("motion.external.t", f"a time after {last}", t)
+        if self._n == len(self._tbuf):
+            self._tbuf = np.concatenate([self._tbuf, np.empty(self._n)])
+            self._xbuf = np.concatenate([self._xbuf, np.empty((self._n, 3))])
+        self._tbuf[self._n] = float(t)
+        self._xbuf[self._n] = values
+        self._n += 1
 
     def reset(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0) -> None:
         self.__init__(t0, s0, speed0, accel0)
 
     @property
     def end_time(self) -> float:
-        return self._t[-1]
+        return float(self._tbuf[self._n - 1])
 
     def evaluate(self, t):
         t = np.asarray(t, dtype=float)
-        knots = np.asarray(self._t)
+        knots = self._tbuf[: self._n]
         if t.size and (t.max() > knots[-1] + 1e-12 or t.min() < knots[0] - 1e-12):
             raise ConfigError(
                 "motion.external", f"samples covering [{t.min()}, {t.max()}] s",
                 f"samples for [{knots[0]}, {knots[-1]}] s",
             )
-        values = np.asarray(self._x)
+        values = self._xbuf[: self._n]
         if len(knots) == 1:
             z = np.zeros_like(t)
             return values[0, 0] + z, values[0, 1] + z, values[0, 2] + z

@@ -261,6 +261,7 @@ class Simulator:
             scenario.imu.quadrature_nodes, t_end=self.timing.duration_s)
         self._check_motion_fits_track()
         self._step = None
+        self._no_epochs = None  # the empty GnssEpochs of an epoch-less chunk (built once)
 
     # -- validation ----------------------------------------------------------------
     def _check_motion_fits_track(self) -> None:
@@ -392,7 +393,14 @@ class Simulator:
         # --- GNSS epochs at the end of every steps_per_epoch-th step
         epoch_steps = np.flatnonzero((steps + 1) % timing.steps_per_epoch == 0)
         gnss_epochs, receiver_outage = None, np.zeros(len(epoch_steps), dtype=bool)
-        if self.scenario.gnss.enabled:
+        if self.scenario.gnss.enabled and not len(epoch_steps):
+            # no epoch in these steps: nothing is drawn or advanced, reuse the empty epochs
+            if self._no_epochs is None:
+                self._no_epochs, _ = gnss_mod.simulate_epochs(
+                    t_end_steps[:0], truth.position_e[:0], truth.velocity_e[:0], self.constellation,
+                    self.gnss_model, self.gnss_state, np.random.default_rng(0), self.earth)
+            gnss_epochs = self._no_epochs
+        elif self.scenario.gnss.enabled:
             idx = epoch_steps
             gnss_epochs, self.gnss_state = gnss_mod.simulate_epochs(
                 t_end_steps[idx], truth.position_e[idx], truth.velocity_e[idx], self.constellation,

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .earth import mat_en
-from .motion import ExternalMotion, TrueState, body_kinematics, true_state
+from .motion import ExternalMotion, TrueState, true_state
 from .rotations import mat_nb_from_hpr
 from .sensors.imu import multiple_integral_rule
 
@@ -149,14 +149,19 @@ class TruthGenerator:
     # ------------------------------------------------------------------ direct method
     def _direct(self, index: np.ndarray) -> IdealSamples:
         h = self.h
+        n, q = len(index), len(self._nodes)
         t_start = index * h
         t_nodes = t_start[:, None] + self._nodes[None, :] * h
-        omega_nodes, force_nodes = body_kinematics(self.track, self.profile, t_nodes, self.oscillations)
+        # one evaluation for the quadrature nodes and the sample ends (fewer numpy calls)
+        state = true_state(self.track, self.profile, np.concatenate([t_nodes.ravel(), (index + 1) * h]),
+                           self.oscillations)
+        omega_nodes = state.omega_ib_b[: n * q].reshape(n, q, 3)
+        force_nodes = state.specific_force_b[: n * q].reshape(n, q, 3)
         powers = h ** np.arange(1, self.orders + 1)
         # (1.14): r-fold integral = h^r sum_j w[r-1, j] g(t_k + tau_j h)
         dtheta = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, omega_nodes)
         dv = powers[None, :, None] * np.einsum("rj,njc->nrc", self._weights, force_nodes)
-        truth = true_state(self.track, self.profile, (index + 1) * h, self.oscillations)
+        truth = TrueState(**{f: getattr(state, f)[n * q:] for f in TrueState.__dataclass_fields__})
         return IdealSamples(dtheta, dv, truth.omega_ib_b, truth.specific_force_b, truth,
                             np.zeros(len(index), dtype=bool))
 

@@ -805,10 +805,16 @@ def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDAr
     ``scipy.signal.lfilter`` with ``zi = phi * x_0`` evaluates exactly
     ``y_k = drive_k + phi * y_{k-1}``, so the result does not depend on chunking.
     """
-    from scipy.signal import lfilter  # lazy: scipy.signal costs ~0.7 s to import
-
     n = drive.shape[0]
     out = np.empty_like(drive)
+    if n <= 16:  # a few samples (step-by-step use): the plain recursion, same arithmetic
+        x = start.copy()
+        for k in range(n):
+            x = drive[k] + phi * x  # y_k = drive_k + phi y_{k-1}, as lfilter evaluates it
+            out[k] = x
+        return out
+    from scipy.signal import lfilter  # lazy: scipy.signal costs ~0.7 s to import
+
     flat_drive = drive.reshape(n, -1)
     flat_out = out.reshape(n, -1)
     for c, (p, x0) in enumerate(zip(phi.ravel(), start.ravel())):
