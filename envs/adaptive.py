@@ -59,6 +59,7 @@ import numpy as np
 
 from navsim.errors import ConfigError
 
+from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 
@@ -178,15 +179,8 @@ class AdaptiveFilterEnv(gym.Env):
         self.sim = Simulator(self.scenario)
         self.context = make_context(self.sim)
         self.prn = np.asarray(self.sim.constellation.prn)
-        if isinstance(estimator, str):
-            from navsim.estimators import make
-
-            self.estimator_name = estimator
-            estimator = make(estimator, **(estimator_options or {}))
-        else:
-            self.estimator_name = type(estimator).__name__
-        self.estimator = estimator
-        self.adapter = NoiseAdapter(estimator)
+        self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
+        self.adapter = NoiseAdapter(self.estimator)
         self.max_scale = float(max_scale)
         self.reward_cap = float(reward_cap)
         self.render_mode = None

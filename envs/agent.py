@@ -49,6 +49,15 @@ class EstimateAction(np.ndarray):
         self.extras = getattr(obj, "extras", (None, None, None, None)) if obj is not None else (None, None, None, None)
 
 
+def resolve_estimator(estimator: Any, options: dict | None = None) -> tuple[str, Any]:
+    """``(name, estimator)``: a registry name is built with ``navsim.estimators.make``."""
+    if isinstance(estimator, str):
+        from navsim.estimators import make
+
+        return estimator, make(estimator, **(options or {}))
+    return type(estimator).__name__, estimator
+
+
 class EstimatorAgent:
     """An estimator driven by the navigation env's observations.
 
@@ -70,15 +79,10 @@ class EstimatorAgent:
     """
 
     def __init__(self, estimator: Any, name: str | None = None, **options: Any) -> None:
-        if isinstance(estimator, str):
-            from navsim.estimators import make
-
-            self.name = name or estimator
-            estimator = make(estimator, **options)
-        else:
-            if options:
-                raise ConfigError("EstimatorAgent options", "options only with an estimator name", options)
-            self.name = name or type(estimator).__name__
+        if options and not isinstance(estimator, str):
+            raise ConfigError("EstimatorAgent options", "options only with an estimator name", options)
+        default_name, estimator = resolve_estimator(estimator, options)
+        self.name = name or default_name
         if not (callable(getattr(estimator, "reset", None)) and callable(getattr(estimator, "step", None))):
             raise ConfigError("estimator", "an object with reset(context, prior) and step(measurement)", estimator)
         self.estimator = estimator

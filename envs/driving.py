@@ -66,6 +66,7 @@ import numpy as np
 from navsim.errors import ConfigError
 
 from .adaptive import _step_batch
+from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 from .plant import TrainParameters, TrainPlant
@@ -193,14 +194,7 @@ class DrivingEnv(gym.Env):
         self.prn = np.asarray(self.sim.constellation.prn)
         self.map = _MapTable(self.sim.track)
         self.plant = TrainPlant(self.map.sin_grade, train or TrainParameters())
-        if isinstance(estimator, str):
-            from navsim.estimators import make
-
-            self.estimator_name = estimator
-            estimator = make(estimator, **(estimator_options or {}))
-        else:
-            self.estimator_name = type(estimator).__name__
-        self.estimator = estimator
+        self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
         self.stop_tolerance_m = float(stop_tolerance_m)
         self.truth_in_info = bool(truth_in_info)
         self.render_mode = None
