@@ -13,29 +13,11 @@ from pythonfmu3 import Fmi3Slave
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
-from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, mark_failed as _mark_failed
 
 __all__ = ["PlantSlave", "EstimatorSlave"]
 
 _LEVEL = {"info": Fmi3Status.ok, "warning": Fmi3Status.warning, "error": Fmi3Status.error}
-
-
-# Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
-# exception into a Fatal status and, in doing so, releases its references to the slave
-# class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
-# freeing the instance releases them a second time. One extra reference per object is
-# kept here when an instance fails (a small, bounded leak per failed instance), and a
-# failed instance never raises again: later calls log, return zeros or refuse the step.
-_FAILED: list = []
-
-
-def _mark_failed(slave) -> None:
-    if not slave._failed:
-        slave._failed = True
-        _FAILED.append((slave, type(slave), slave.log_queue))
-        rt = getattr(slave, "rt", None)
-        if rt is not None:  # drop the simulator / estimator of a dead instance
-            rt.sim = rt.estimator = None
 
 
 class _Slave(SlaveValues, Fmi3Slave):

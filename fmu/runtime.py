@@ -581,6 +581,25 @@ class EstimatorRuntime(_RuntimeBase):
         w("nav.nis_dof", int(est.nis_dof or 0) if est.nis is not None else 0)
 
 
+# Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
+# exception into a Fatal status and, in doing so, releases its references to the slave
+# class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
+# freeing the instance releases them a second time. One extra reference per object is
+# kept here when an instance fails (a small, bounded leak per failed instance), and a
+# failed instance never raises again: later calls log, return zeros or refuse the step.
+_FAILED: list = []
+
+
+def mark_failed(slave) -> None:
+    """Mark a slave (FMI 2 or 3) failed under the protocol above (idempotent)."""
+    if not slave._failed:
+        slave._failed = True
+        _FAILED.append((slave, type(slave), slave.log_queue))
+        rt = getattr(slave, "rt", None)
+        if rt is not None:  # drop the simulator / estimator of a dead instance
+            rt.sim = rt.estimator = None
+
+
 class SlaveValues:
     """Value access shared by the FMI 2 and FMI 3 slave classes (a mixin).
 
