@@ -66,6 +66,7 @@ References
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,6 +94,7 @@ __all__ = [
     "GnssState",
     "GnssEpochs",
     "simulate_epochs",
+    "simulate_epochs_batch",
     "Fix",
     "VelocityFix",
     "least_squares_fix",
@@ -939,89 +941,147 @@ def simulate_epochs(
     pseudorange rate = (r_s - r).(v_s - v)/rho + b_dot + w_V (003 eq. (3)). rho is the
     geometric range at the reception instant (no light time, no Sagnac), as in (2).
     Atmospheric delay rates (below 1 cm/s) are left out of the Doppler observable.
+    This is the one-receiver case of :func:`simulate_epochs_batch`.
+    """
+    if visible is not None:
+        visible = np.asarray(visible, dtype=bool)[None]
+    epochs, states = simulate_epochs_batch(t, position_e, velocity_e, constellation, model, [state], [rng], earth,
+                                           visible, geometry=geometry)
+    return GnssEpochs(**{name: getattr(epochs, name)[0] for name in GnssEpochs.__slots__}), states[0]
+
+
+def simulate_epochs_batch(
+    t,
+    position_e,
+    velocity_e,
+    constellation: Constellation,
+    model: GnssErrorModel,
+    states: Sequence[GnssState],
+    rngs: Sequence[np.random.Generator],
+    earth: EarthModel = WGS84,
+    visible=None,
+    *,
+    geometry: SkyGeometry | None = None,
+) -> tuple[GnssEpochs, list[GnssState]]:
+    """:func:`simulate_epochs` for B receivers at the same place (one true motion).
+
+    The geometry (satellite states, ranges, range rates, elevations, atmospheric delays)
+    is computed once; receiver j draws its own block from ``rngs[j]`` and gets exactly the
+    numbers of ``simulate_epochs(..., states[j], rngs[j], visible=visible[j])``.
+
+    Parameters
+    ----------
+    t, position_e, velocity_e, constellation, model, earth, geometry
+        As :func:`simulate_epochs`, shared by all receivers.
+    states : sequence of B GnssState, all at the same ``t_s`` (lockstep).
+    rngs : sequence of B numpy.random.Generator
+    visible : array_like (B, k, m) bool, optional
+
+    Returns
+    -------
+    epochs : GnssEpochs
+        Every array with a leading receiver axis (B, k, ...); the shared ones (``t``,
+        ``sat_pos_e``, ``sat_vel_e``, ``elevation``, ``azimuth``) as read-only broadcast
+        views.
+    new_states : list of B GnssState
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     k, m = t.size, constellation.n_satellites
+    states, rngs = list(states), list(rngs)
+    members = len(states)
+    if not states or len(rngs) != members:
+        raise ConfigError("rngs", f"one generator per state ({members}, at least one)", len(rngs))
     position_e = np.asarray(position_e, dtype=float).reshape(k, 3) if k else np.zeros((0, 3))
     velocity_e = np.asarray(velocity_e, dtype=float).reshape(k, 3) if k else np.zeros((0, 3))
-    if state.multipath.shape != (m,):
-        raise ConfigError("state.multipath", f"shape ({m},)", state.multipath.shape)
+    for state in states:
+        if state.multipath.shape != (m,):
+            raise ConfigError("state.multipath", f"shape ({m},)", state.multipath.shape)
+    t_s = states[0].t_s
+    if any(not (s.t_s == t_s or (math.isnan(s.t_s) and math.isnan(t_s))) for s in states):
+        raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({s.t_s for s in states}))
     if not np.all(np.isfinite(t)):
         raise ConfigError("t", "finite times", t)
-    dt = np.diff(np.concatenate([[state.t_s], t]))
-    increasing = np.all(dt[1:] > 0.0) and (not np.isfinite(state.t_s) or k == 0 or dt[0] > 0.0)
+    dt = np.diff(np.concatenate([[t_s], t]))
+    increasing = np.all(dt[1:] > 0.0) and (not np.isfinite(t_s) or k == 0 or dt[0] > 0.0)
     if not increasing:
-        raise ConfigError("t", f"strictly increasing times after state.t_s={state.t_s}", t)
+        raise ConfigError("t", f"strictly increasing times after state.t_s={t_s}", t)
     if visible is None:
-        visible = np.ones((k, m), dtype=bool)
+        visible = np.ones((1, k, m), dtype=bool)
     else:
-        visible = np.broadcast_to(np.asarray(visible, dtype=bool), (k, m))
+        visible = np.broadcast_to(np.asarray(visible, dtype=bool), (members, k, m))
     geo = geometry if geometry is not None else sky_geometry(t, position_e, constellation, earth)
     if geo.range_m.shape != (k, m):
         raise ConfigError("geometry", f"a SkyGeometry for ({k}, {m}) epochs x satellites", geo.range_m.shape)
 
-    draws = rng.standard_normal((k, GnssErrorModel.draw_width(m)))
-    z_clock, z_code = draws[:, :2], draws[:, 2 : 2 + m]
-    z_doppler, z_mp = draws[:, 2 + m : 2 + 2 * m], draws[:, 2 + 2 * m :]
+    draws = np.empty((members, k, GnssErrorModel.draw_width(m)))
+    for j, rng in enumerate(rngs):
+        rng.standard_normal(out=draws[j])
+    z_clock, z_code = draws[:, :, :2], draws[:, :, 2 : 2 + m]
+    z_doppler, z_mp = draws[:, :, 2 + m : 2 + 2 * m], draws[:, :, 2 + 2 * m :]
 
-    # ---- recursive parts: receiver clock and multipath, epoch by epoch
-    first = not np.isfinite(state.t_s)
+    # ---- recursive parts: receiver clock and multipath, epoch by epoch (members at once)
+    first = not np.isfinite(t_s)
     step = np.where(np.isfinite(dt), dt, 0.0)
     l00, l10, l11 = _clock_cholesky(model, step)
     phi = np.exp(-step / model.multipath_time_constant_s)
     kick = np.sqrt(1.0 - phi**2)
-    bias = np.empty(k)
-    drift = np.empty(k)
-    multipath = np.empty((k, m))
-    b, d, x = state.clock_bias_m, state.clock_drift_mps, state.multipath.copy()
+    bias = np.empty((members, k))
+    drift = np.empty((members, k))
+    multipath = np.empty((members, k, m))
+    b = np.array([s.clock_bias_m for s in states])
+    d = np.array([s.clock_drift_mps for s in states])
+    x = np.stack([s.multipath for s in states])
     clock_on = model.clock_enabled
     for j in range(k):
         if not (first and j == 0):
             if clock_on:
                 # two-state clock: b += d dt + w_b, d += w_d, cov(w) = Q(dt)
-                b = b + d * step[j] + l00[j] * z_clock[j, 0]
-                d = d + l10[j] * z_clock[j, 0] + l11[j] * z_clock[j, 1]
-            x = phi[j] * x + kick[j] * z_mp[j]  # first-order Gauss-Markov
-        bias[j], drift[j] = b, d
-        multipath[j] = x
+                b = b + d * step[j] + l00[j] * z_clock[:, j, 0]
+                d = d + l10[j] * z_clock[:, j, 0] + l11[j] * z_clock[:, j, 1]
+            x = phi[j] * x + kick[j] * z_mp[:, j]  # first-order Gauss-Markov
+        bias[:, j], drift[:, j] = b, d
+        multipath[:, j] = x
 
-    # ---- measurements
+    # ---- measurements: the geometry once, the errors per member
     los_e = geo.sat_pos_e - position_e[:, None, :]
     rel_vel_e = geo.sat_vel_e - velocity_e[:, None, :]
     rho = geo.range_m
     with np.errstate(invalid="ignore", divide="ignore"):
         range_rate = np.einsum("kmi,kmi->km", los_e, rel_vel_e) / rho  # (3)
     elevation = geo.elevation
-    pseudorange = rho + bias[:, None] + model.pseudorange_sigma_m * z_code  # (2)
+    pseudorange = rho + bias[:, :, None] + model.pseudorange_sigma_m * z_code  # (2)
     if model.ionosphere_zenith_m > 0.0:
         pseudorange = pseudorange + model.ionosphere_delay_m(elevation, earth)
     if model.troposphere_zenith_m > 0.0:
         pseudorange = pseudorange + model.troposphere_delay_m(elevation, geo.height_m[:, None])
     if model.multipath_sigma_m > 0.0:
         pseudorange = pseudorange + model.multipath_sigma(elevation) * multipath
-    pseudorange_rate = range_rate + drift[:, None] + model.doppler_sigma_mps * z_doppler
+    pseudorange_rate = range_rate + drift[:, :, None] + model.doppler_sigma_mps * z_doppler
 
     finite = np.isfinite(pseudorange) & np.isfinite(pseudorange_rate) & np.isfinite(elevation)
     with np.errstate(invalid="ignore"):
         above = elevation >= np.radians(model.elevation_mask_deg)
     valid = above & visible & finite
-    zero = np.zeros_like(pseudorange)
+    zero = np.zeros(())
+
+    def shared(a):
+        return np.broadcast_to(a, (members, *a.shape))
+
     epochs = GnssEpochs(
-        t=t.copy(),
-        sat_pos_e=geo.sat_pos_e,
-        sat_vel_e=geo.sat_vel_e,
+        t=shared(t.copy()),
+        sat_pos_e=shared(geo.sat_pos_e),
+        sat_vel_e=shared(geo.sat_vel_e),
         pseudorange_m=np.where(valid, pseudorange, zero),
         pseudorange_rate_mps=np.where(valid, pseudorange_rate, zero),
         valid=valid,
-        elevation=np.where(np.isfinite(elevation), elevation, zero),
-        azimuth=np.where(np.isfinite(geo.azimuth), geo.azimuth, zero),
+        elevation=shared(np.where(np.isfinite(elevation), elevation, zero)),
+        azimuth=shared(np.where(np.isfinite(geo.azimuth), geo.azimuth, zero)),
         clock_bias_m=bias,
         clock_drift_mps=drift,
     )
-    new_state = (
-        GnssState(float(t[-1]), float(b), float(d), x) if k else state
-    )
-    return epochs, new_state
+    if not k:
+        return epochs, states
+    return epochs, [GnssState(float(t[-1]), float(b[j]), float(d[j]), x[j]) for j in range(members)]
 
 
 # ====================================================================== solutions

@@ -126,6 +126,7 @@ __all__ = [
     "ImuState",
     "ImuOutput",
     "apply_imu_errors",
+    "apply_imu_errors_batch",
     "imu_preset",
     "nominal_noise",
 ]
@@ -800,25 +801,32 @@ def _level_lsb(model: ImuErrorModel, h: float, order: int) -> NDArray[np.float64
 
 
 def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDArray:
-    """``x_{k+1} = phi x_k + drive_k`` per channel; returns x_1..x_n, shape like drive.
+    """``x_{k+1} = phi x_k + drive_k`` per channel along axis 1; returns x_1..x_n.
 
-    ``scipy.signal.lfilter`` with ``zi = phi * x_0`` evaluates exactly
-    ``y_k = drive_k + phi * y_{k-1}``, so the result does not depend on chunking.
+    ``drive`` is (B, n, ...) (B members, n samples), ``start`` (B, ...), ``phi`` broadcasts
+    against ``start``. ``scipy.signal.lfilter`` with ``zi = phi * x_0`` evaluates exactly
+    ``y_k = drive_k + phi * y_{k-1}``, so the result does not depend on chunking nor on
+    how many members are filtered together. All-zero input (the error switched off)
+    gives exact zeros without filtering.
     """
-    n = drive.shape[0]
+    n = drive.shape[1]
+    if not (drive.any() or start.any()):
+        return np.zeros_like(drive)
     out = np.empty_like(drive)
     if n <= 16:  # a few samples (step-by-step use): the plain recursion, same arithmetic
         x = start.copy()
         for k in range(n):
-            x = drive[k] + phi * x  # y_k = drive_k + phi y_{k-1}, as lfilter evaluates it
-            out[k] = x
+            x = drive[:, k] + phi * x  # y_k = drive_k + phi y_{k-1}, as lfilter evaluates it
+            out[:, k] = x
         return out
     from scipy.signal import lfilter  # lazy: scipy.signal costs ~0.7 s to import
 
-    flat_drive = drive.reshape(n, -1)
-    flat_out = out.reshape(n, -1)
-    for c, (p, x0) in enumerate(zip(phi.ravel(), start.ravel())):
-        flat_out[:, c], _ = lfilter([1.0], [1.0, -p], flat_drive[:, c], zi=[p * x0])
+    b = drive.shape[0]
+    flat_drive = drive.reshape(b, n, -1)
+    flat_out = out.reshape(b, n, -1)
+    flat_start = start.reshape(b, -1)
+    for c, p in enumerate(np.broadcast_to(phi, start.shape[1:]).ravel()):
+        flat_out[:, :, c], _ = lfilter([1.0], [1.0, -p], flat_drive[:, :, c], axis=1, zi=p * flat_start[:, c, None])
     return out
 
 
@@ -849,6 +857,26 @@ def _quantize(
             count = np.zeros_like(count)
         i = stop
     return out, acc, count
+
+
+def _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b):
+    dtheta_r = np.asarray(dtheta_r, dtype=float)
+    dv_r = np.asarray(dv_r, dtype=float)
+    if dtheta_r.ndim != 3 or dtheta_r.shape[-1] != 3 or not 1 <= dtheta_r.shape[1] <= MAX_ORDER:
+        raise ConfigError("dtheta_r", f"shape (n, R, 3) with 1 <= R <= {MAX_ORDER}", dtheta_r.shape)
+    n = dtheta_r.shape[0]
+    if dv_r.shape != dtheta_r.shape:
+        raise ConfigError("dv_r", f"shape {dtheta_r.shape} like dtheta_r", dv_r.shape)
+    t_start = np.asarray(t_start, dtype=float)
+    if t_start.shape != (n,):
+        raise ConfigError("t_start", f"shape ({n},)", t_start.shape)
+    omega_b = np.asarray(omega_b, dtype=float)
+    f_b = np.asarray(f_b, dtype=float)
+    if omega_b.shape != (n, 3):
+        raise ConfigError("omega_b", f"shape ({n}, 3)", omega_b.shape)
+    if f_b.shape != (n, 3):
+        raise ConfigError("f_b", f"shape ({n}, 3)", f_b.shape)
+    return t_start, dtheta_r, dv_r, omega_b, f_b
 
 
 def apply_imu_errors(
@@ -885,59 +913,103 @@ def apply_imu_errors(
     -------
     output : ImuOutput
     new_state : ImuState
+
+    See Also
+    --------
+    apply_imu_errors_batch : the same for B IMUs on one true motion (this function is
+        its B = 1 case).
+    """
+    output, states = apply_imu_errors_batch(t_start, h, dtheta_r, dv_r, omega_b, f_b, model, [state], [rng])
+    return ImuOutput(output.dtheta_r[0], output.dv_r[0], output.rate_b[0], output.accel_b[0]), states[0]
+
+
+def apply_imu_errors_batch(
+    t_start: ArrayLike,
+    h: float,
+    dtheta_r: ArrayLike,
+    dv_r: ArrayLike,
+    omega_b: ArrayLike,
+    f_b: ArrayLike,
+    model: ImuErrorModel,
+    states: Sequence[ImuState],
+    rngs: Sequence[np.random.Generator],
+) -> tuple[ImuOutput, list[ImuState]]:
+    """Apply one error model to B IMUs that sense the same true motion, in one pass.
+
+    Member j gets exactly the numbers of ``apply_imu_errors(..., states[j], rngs[j])``
+    (the same draws from its own generator, the same floating-point operations, applied
+    elementwise over a leading member axis). This is how the native vector environment
+    simulates N episodes of a scenario in lockstep.
+
+    Parameters
+    ----------
+    t_start, h, dtheta_r, dv_r, omega_b, f_b, model
+        As :func:`apply_imu_errors`; the true data are shared by all members.
+    states : sequence of B ImuState
+        Their ``sample_index`` must be equal (lockstep).
+    rngs : sequence of B numpy.random.Generator
+        Generator j draws one ``(n, 6 (R + 2))`` block.
+
+    Returns
+    -------
+    output : ImuOutput
+        Arrays with a leading member axis: ``dtheta_r`` (B, n, R, 3), ``rate_b`` (B, n, 3).
+    new_states : list of B ImuState
     """
     h = _check_h(h)
     if not isinstance(model, ImuErrorModel):
         raise ConfigError("model", "an ImuErrorModel", type(model).__name__)
-    if not isinstance(state, ImuState):
-        raise ConfigError("state", "an ImuState", type(state).__name__)
-    dtheta_r = np.asarray(dtheta_r, dtype=float)
-    dv_r = np.asarray(dv_r, dtype=float)
-    if dtheta_r.ndim != 3 or dtheta_r.shape[-1] != 3 or not 1 <= dtheta_r.shape[1] <= MAX_ORDER:
-        raise ConfigError("dtheta_r", f"shape (n, R, 3) with 1 <= R <= {MAX_ORDER}", dtheta_r.shape)
+    states = list(states)
+    rngs = list(rngs)
+    if not states or len(rngs) != len(states):
+        raise ConfigError("rngs", f"one generator per state ({len(states)}, at least one)", len(rngs))
+    for state in states:
+        if not isinstance(state, ImuState):
+            raise ConfigError("state", "an ImuState", type(state).__name__)
+    index = states[0].sample_index
+    if any(s.sample_index != index for s in states):
+        raise ConfigError("states", "states at the same sample_index (lockstep)",
+                          sorted({s.sample_index for s in states}))
+    t_start, dtheta_r, dv_r, omega_b, f_b = _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b)
     n, order = dtheta_r.shape[:2]
-    if dv_r.shape != dtheta_r.shape:
-        raise ConfigError("dv_r", f"shape {dtheta_r.shape} like dtheta_r", dv_r.shape)
-    t_start = np.asarray(t_start, dtype=float)
-    if t_start.shape != (n,):
-        raise ConfigError("t_start", f"shape ({n},)", t_start.shape)
-    omega_b = np.asarray(omega_b, dtype=float)
-    f_b = np.asarray(f_b, dtype=float)
-    if omega_b.shape != (n, 3):
-        raise ConfigError("omega_b", f"shape ({n}, 3)", omega_b.shape)
-    if f_b.shape != (n, 3):
-        raise ConfigError("f_b", f"shape ({n}, 3)", f_b.shape)
+    members = len(states)
 
     if n == 0:
-        empty = np.zeros((0, order, 3))
-        return ImuOutput(empty, empty.copy(), np.zeros((0, 3)), np.zeros((0, 3))), state
+        empty = np.zeros((members, 0, order, 3))
+        return ImuOutput(empty, empty.copy(), np.zeros((members, 0, 3)), np.zeros((members, 0, 3))), states
 
-    # One block per call; width fixed by R only.
-    z = rng.standard_normal((n, 6 * (order + 2))).reshape(n, 2, order + 2, 3)
+    # One block per member and call; width fixed by R only.
+    z = np.empty((members, n, 6 * (order + 2)))
+    for j, rng in enumerate(rngs):
+        rng.standard_normal(out=z[j])
+    z = z.reshape(members, n, 2, order + 2, 3)
     sensors = (model.gyro, model.accel)
     r = np.arange(1, order + 1)
     h_r_fact = h**r / np.array([math.factorial(int(k)) for k in r], dtype=float)  # h^r / r!
+    turn_on = np.stack([s.turn_on_bias for s in states])  # (B, 2, 3)
+    gm_start = np.stack([s.bias_gauss_markov for s in states])
+    rrw_start = np.stack([s.bias_random_walk for s in states])
 
     # Gauss-Markov and rate-random-walk biases: exact discrete propagation between
     # samples, held constant within each sample (see the module docstring).
     sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
     tau = np.stack([s.bias_correlation_time_s for s in sensors])
     phi = np.exp(-h / tau)
-    gm_drive = (sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau)))[None] * z[:, :, order]
+    gm_drive = (sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau)))[None, None] * z[:, :, :, order]
     rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
-    rrw_drive = rrw_gain[None] * z[:, :, order + 1]
-    gm_next = _first_order_recursion(phi, gm_drive, state.bias_gauss_markov)  # b_1..b_n
-    rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, state.bias_random_walk)
-    varying = np.concatenate((state.bias_gauss_markov[None], gm_next[:-1]), axis=0)
-    varying += np.concatenate((state.bias_random_walk[None], rrw_next[:-1]), axis=0)
+    rrw_drive = rrw_gain[None, None] * z[:, :, :, order + 1]
+    gm_next = _first_order_recursion(phi, gm_drive, gm_start)  # b_1..b_n, (B, n, 2, 3)
+    rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
+    varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
+    varying += np.concatenate((rrw_start[:, None], rrw_next[:, :-1]), axis=1)
 
     density = np.stack([s.white_noise_density for s in sensors])  # (2, 3)
     noise_factor = _unit_noise_factor(order)
     noise_scale = math.sqrt(h) * h ** (r - 1)  # white-noise integral r scales as h^(r - 1/2)
     lsb_levels = _level_lsb(model, h, order)
     rows = list(range(order)) + [MAX_ORDER]
-    acc_new = np.array(state.quant_accumulator)
-    count_new = np.array(state.quant_count)
+    acc_new = np.stack([s.quant_accumulator for s in states])  # (B, 2, MAX_ORDER + 1, 3)
+    count_new = np.stack([s.quant_count for s in states])
     t_end = t_start + h
     outputs = []
     for s_idx, (sensor, true_r, true_rate) in enumerate(
@@ -946,21 +1018,25 @@ def apply_imu_errors(
         # Scale factor and misalignment: linear, so exact on every order.
         transform = np.eye(3) + np.diag(sensor.scale_factor) + sensor.misalignment
         if np.array_equal(transform, np.eye(3)):
-            out, rate = true_r.copy(), true_rate.copy()
+            out, rate = true_r, true_rate
         else:
             out, rate = _mat3_apply(transform, true_r), _mat3_apply(transform, true_rate)
 
         # Gyro g-sensitivity on the true specific force (exact on every order).
         if s_idx == 0 and np.any(model.g_sensitivity):
-            out += _mat3_apply(model.g_sensitivity, dv_r)
-            rate += _mat3_apply(model.g_sensitivity, f_b)
+            out = out + _mat3_apply(model.g_sensitivity, dv_r)
+            rate = rate + _mat3_apply(model.g_sensitivity, f_b)
+        # from here on the members differ
+        out = np.repeat(out[None], members, axis=0)  # (B, n, R, 3)
+        rate = np.repeat(rate[None], members, axis=0)  # (B, n, 3)
 
-        # Biases: constant + turn-on + Gauss-Markov + rate random walk.
-        constant = sensor.bias + state.turn_on_bias[s_idx]
-        if np.any(constant) or np.any(state.bias_gauss_markov[s_idx]) or np.any(sigma_gm[s_idx]) \
-                or np.any(state.bias_random_walk[s_idx]) or np.any(rrw_gain[s_idx]):
-            bias = constant[None] + varying[:, s_idx]  # (n, 3)
-            out += bias[:, None, :] * h_r_fact[None, :, None]  # b h^r / r!
+        # Biases: constant + turn-on + Gauss-Markov + rate random walk (members without
+        # a bias add exact zeros).
+        constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
+        if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
+                or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
+            bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
+            out += bias[:, :, None, :] * h_r_fact[None, None, :, None]  # b h^r / r!
             rate += bias
 
         # Vibration harmonics: closed-form multiple integrals (seed 000, section 6).
@@ -974,39 +1050,42 @@ def apply_imu_errors(
 
         # White noise: exact joint draw of the R integrals, Cov = q h^(i+j-1) / (...).
         if np.any(density[s_idx]):
-            z_white = z[:, s_idx, :order]  # (n, R, 3)
+            z_white = z[:, :, s_idx, :order]  # (B, n, R, 3)
             for i in range(order):  # lower-triangular Cholesky factor times the draws
-                unit = noise_factor[i, 0] * z_white[:, 0]
+                unit = noise_factor[i, 0] * z_white[:, :, 0]
                 for q in range(1, i + 1):
-                    unit += noise_factor[i, q] * z_white[:, q]
+                    unit += noise_factor[i, q] * z_white[:, :, q]
                 noise_i = unit * (noise_scale[i] * density[s_idx])
-                out[:, i] += noise_i
+                out[:, :, i] += noise_i
                 if i == 0:
                     rate += noise_i / h  # sample average: sigma = sqrt(PSD / h)
 
-        # Quantization with residual carry, per output level and axis.
+        # Quantization with residual carry, per output level and axis (members side by
+        # side as channels: the running sums are per column).
         if lsb_levels[s_idx, 0] > 0.0:
-            values = np.concatenate((out, rate[:, None]), axis=1).reshape(n, -1)
+            width = 3 * (order + 1)
+            values = np.concatenate((out, rate[:, :, None]), axis=2).reshape(members, n, width)
             q, acc, count = _quantize(
-                values,
-                np.repeat(lsb_levels[s_idx], 3),
-                state.quant_accumulator[s_idx, rows].ravel(),
-                state.quant_count[s_idx, rows].ravel(),
-                state.sample_index,
+                values.transpose(1, 0, 2).reshape(n, members * width),
+                np.tile(np.repeat(lsb_levels[s_idx], 3), members),
+                acc_new[:, s_idx, rows].reshape(-1),
+                count_new[:, s_idx, rows].reshape(-1),
+                index,
             )
-            q = q.reshape(n, order + 1, 3)
-            out, rate = q[:, :order], q[:, order]
-            acc_new[s_idx, rows] = acc.reshape(order + 1, 3)
-            count_new[s_idx, rows] = count.reshape(order + 1, 3)
+            q = q.reshape(n, members, order + 1, 3).transpose(1, 0, 2, 3)
+            out, rate = q[:, :, :order], q[:, :, order]
+            acc_new[:, s_idx, rows] = acc.reshape(members, order + 1, 3)
+            count_new[:, s_idx, rows] = count.reshape(members, order + 1, 3)
         outputs.append((out, rate))
 
-    new_state = ImuState(
-        state.sample_index + n, state.turn_on_bias, gm_next[-1], rrw_next[-1], acc_new, count_new
-    )
+    new_states = [
+        ImuState(index + n, s.turn_on_bias, gm_next[j, -1], rrw_next[j, -1], acc_new[j], count_new[j])
+        for j, s in enumerate(states)
+    ]
     output = ImuOutput(
         dtheta_r=outputs[0][0], dv_r=outputs[1][0], rate_b=outputs[0][1], accel_b=outputs[1][1]
     )
-    return output, new_state
+    return output, new_states
 
 
 # --------------------------------------------------------------------------------------

@@ -50,14 +50,15 @@ References
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 from ..errors import ConfigError, check_nonnegative
 
-__all__ = ["OutageModel", "OutageState", "visibility", "canyon_mask_elevation"]
+__all__ = ["OutageModel", "OutageState", "visibility", "visibility_batch", "canyon_mask_elevation"]
 
 
 def _pairs(field_name: str, value: Any, width: int) -> tuple[tuple[float, ...], ...]:
@@ -319,9 +320,46 @@ def visibility(
         True where the whole receiver has lost every signal (window, tunnel, arc window,
         receiver dropout).
     new_state : OutageState
+
+    This is the one-receiver case of :func:`visibility_batch`.
+    """
+    visible, receiver_outage, states = visibility_batch(t, s, heading, elevation, azimuth, segments, model, [state],
+                                                        [rng], prn=prn)
+    return visible[0], receiver_outage[0], states[0]
+
+
+def visibility_batch(
+    t,
+    s,
+    heading,
+    elevation,
+    azimuth,
+    segments: Iterable[Any],
+    model: OutageModel,
+    states: Sequence[OutageState],
+    rngs: Sequence[np.random.Generator],
+    *,
+    prn=None,
+) -> tuple[np.ndarray, np.ndarray, list[OutageState]]:
+    """:func:`visibility` for B receivers on the same true motion, in one pass.
+
+    The deterministic masks (windows, tunnels, canyons, sky masks) are computed once;
+    receiver j draws its Markov-chain block from ``rngs[j]`` and gets exactly the result
+    of ``visibility(..., states[j], rngs[j])``. Arguments as :func:`visibility`, except
+    ``states`` (B OutageState at the same ``t_s``) and ``rngs`` (B generators).
+
+    Returns
+    -------
+    visible : ndarray (B, k, m) bool
+    receiver_outage : ndarray (B, k) bool
+    new_states : list of B OutageState
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     k = t.size
+    states, rngs = list(states), list(rngs)
+    members = len(states)
+    if not states or len(rngs) != members:
+        raise ConfigError("rngs", f"one generator per state ({members}, at least one)", len(rngs))
     elevation = np.asarray(elevation, dtype=float)
     if elevation.ndim != 2 or elevation.shape[0] != k:
         raise ConfigError("elevation", f"shape ({k}, m)", elevation.shape)
@@ -329,16 +367,22 @@ def visibility(
     azimuth = np.asarray(azimuth, dtype=float).reshape(k, m)
     s = np.broadcast_to(np.asarray(s, dtype=float), (k,))
     heading = np.broadcast_to(np.asarray(heading, dtype=float), (k,))
-    if state.satellite_out.shape != (m,):
-        raise ConfigError("state.satellite_out", f"shape ({m},)", state.satellite_out.shape)
+    for state in states:
+        if state.satellite_out.shape != (m,):
+            raise ConfigError("state.satellite_out", f"shape ({m},)", state.satellite_out.shape)
+    t_s = states[0].t_s
+    if any(not (st.t_s == t_s or (math.isnan(st.t_s) and math.isnan(t_s))) for st in states):
+        raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({st.t_s for st in states}))
     if not np.all(np.isfinite(t)):
         raise ConfigError("t", "finite times", t)
-    dt = np.diff(np.concatenate([[state.t_s], t]))
-    if not (np.all(dt[1:] > 0.0) and (not np.isfinite(state.t_s) or k == 0 or dt[0] > 0.0)):
-        raise ConfigError("t", f"strictly increasing times after state.t_s={state.t_s}", t)
+    dt = np.diff(np.concatenate([[t_s], t]))
+    if not (np.all(dt[1:] > 0.0) and (not np.isfinite(t_s) or k == 0 or dt[0] > 0.0)):
+        raise ConfigError("t", f"strictly increasing times after state.t_s={t_s}", t)
     dt = np.where(np.isfinite(dt), dt, 0.0)
 
-    u = rng.random((k, 1 + m))  # one block per call, row = epoch
+    u = np.empty((members, k, 1 + m))
+    for j, rng in enumerate(rngs):
+        rng.random(out=u[j])  # one block per call and receiver, row = epoch
 
     receiver_outage = np.zeros(k, dtype=bool)
     for start, end in model.windows_s:
@@ -375,17 +419,22 @@ def visibility(
         prn = np.asarray(prn).reshape(m)
         visible &= ~np.isin(prn, model.masked_prns)[None, :]
 
-    first = not np.isfinite(state.t_s)
+    # the chains of all receivers side by side as columns (they are independent)
+    first = not np.isfinite(t_s)
     rx_states, rx_last = _markov(
-        u[:, :1], dt, np.array([state.receiver_out]),
+        u[:, :, 0].T, dt, np.array([st.receiver_out for st in states]),
         model.receiver_mean_outage_s, model.receiver_mean_available_s, first,
     )
     sv_states, sv_last = _markov(
-        u[:, 1:], dt, state.satellite_out,
+        u[:, :, 1:].transpose(1, 0, 2).reshape(k, members * m), dt,
+        np.concatenate([st.satellite_out for st in states]),
         model.satellite_mean_outage_s, model.satellite_mean_available_s, first,
     )
-    receiver_outage |= rx_states[:, 0]
-    visible &= ~sv_states
-    visible &= ~receiver_outage[:, None]
-    new_state = OutageState(float(t[-1]), bool(rx_last[0]), sv_last) if k else state
-    return visible, receiver_outage, new_state
+    receiver_outage = receiver_outage[None, :] | rx_states.T  # (B, k)
+    visible = visible[None] & ~sv_states.reshape(k, members, m).transpose(1, 0, 2)
+    visible &= ~receiver_outage[:, :, None]
+    if not k:
+        return visible, receiver_outage, states
+    sv_last = sv_last.reshape(members, m)
+    new_states = [OutageState(float(t[-1]), bool(rx_last[j]), sv_last[j]) for j in range(members)]
+    return visible, receiver_outage, new_states
