@@ -53,6 +53,8 @@ def make_context(sim: Simulator) -> Context:
     )
     g = sim.gnss_model
     clock = bool(g.clock_enabled)
+    iono, tropo = g.ionosphere_zenith_m > 0.0, g.troposphere_zenith_m > 0.0
+    atmosphere = bool(iono or tropo)
     gnss = NominalGnss(
         pseudorange_sigma_m=float(np.hypot(g.pseudorange_sigma_m, g.multipath_sigma_m)),
         doppler_sigma_mps=float(g.doppler_sigma_mps),
@@ -61,6 +63,20 @@ def make_context(sim: Simulator) -> Context:
         clock_drift_sigma_mps=max(abs(g.clock_drift_mps), 1.0) if clock else 0.0,
         clock_phase_psd=C_LIGHT**2 * g.clock_h0 / 2.0 if clock else 0.0,
         clock_freq_psd=2.0 * math.pi**2 * C_LIGHT**2 * g.clock_h_2 if clock else 0.0,
+        # Atmosphere: the designer knows the receiver is single-frequency and uncorrected
+        # (the delays are on), not the delays. A-priori values a receiver applies from
+        # standard models: ionosphere, the constant (night-time) term of the GPS broadcast
+        # (Klobuchar) model, 5 ns = 1.50 m (navsim broadcasts no coefficients); sigma
+        # 4.5 m, DO-229D J.2.3 tau_vert at mid-latitudes (the bundled scenarios lie at
+        # 44-47 deg). Troposphere, DO-229D A.4.2.4 at sea level and 45 deg, annual mean
+        # (P 1015.75 hPa, T 283.15 K, e 11.66 hPa): 2.313 m dry + 0.135 m wet = 2.448 m;
+        # sigma 0.12 m, DO-229D sigma_TVE. Thin shell at 350 km (Klobuchar), exponential
+        # height law with the 8 km scale height of the standard atmosphere.
+        atmosphere_modelled=atmosphere,
+        ionosphere_zenith_m=5e-9 * C_LIGHT if iono else 0.0,
+        ionosphere_zenith_sigma_m=4.5 if iono else 0.0,
+        troposphere_zenith_m=2.448 if tropo else 0.0,
+        troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
     )
     timing = sim.timing
     return Context(

@@ -78,6 +78,17 @@ class NominalGnss:
     case, clock error compensated). clock_bias_sigma_m, clock_drift_sigma_mps : initial
     uncertainty; clock_phase_psd, clock_freq_psd : two-state clock model PSDs
     (m^2/s and m^2/s^3).
+
+    Atmosphere (what a single-frequency receiver knows of it, not the simulator's delays):
+    atmosphere_modelled : True when uncorrected ionospheric/tropospheric delays are in the
+    pseudoranges (False: the defaults below are unused, nothing changes).
+    ionosphere_zenith_m : a-priori vertical ionospheric code delay the receiver applies
+    (broadcast-model-like value), mapped to slant with the thin-shell obliquity factor
+    at ionosphere_shell_height_m (m above the Earth model's equatorial radius).
+    troposphere_zenith_m : a-priori zenith tropospheric delay at sea level from a
+    standard model, scaled by exp(-h / troposphere_scale_height_m) and mapped to slant
+    with the RTCA DO-229 function. ionosphere_zenith_sigma_m, troposphere_zenith_sigma_m :
+    1-sigma uncertainty of those a-priori zenith delays (0: the delay is absent).
     """
 
     pseudorange_sigma_m: float = 15.0
@@ -87,6 +98,13 @@ class NominalGnss:
     clock_drift_sigma_mps: float = 0.0
     clock_phase_psd: float = 0.0
     clock_freq_psd: float = 0.0
+    atmosphere_modelled: bool = False
+    ionosphere_zenith_m: float = 0.0
+    ionosphere_zenith_sigma_m: float = 0.0
+    ionosphere_shell_height_m: float = 350_000.0
+    troposphere_zenith_m: float = 0.0
+    troposphere_zenith_sigma_m: float = 0.0
+    troposphere_scale_height_m: float = 8_000.0
 
 
 @dataclass(frozen=True)

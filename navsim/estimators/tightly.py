@@ -18,6 +18,50 @@ compensated), the states stay (option ``clock="auto"``) with a tiny prior (1 mm,
 and no process noise, so they absorb nothing and cost one 17 x 17 instead of a 15 x 15
 covariance; ``clock="none"`` drops them (15 states).
 
+Atmosphere: when ``context.gnss.atmosphere_modelled`` is True (an uncorrected
+single-frequency receiver; option ``atmosphere="auto"``), two more states follow:
+
+    x = [..., dI, dT]   (19,; 17 with clock="none")
+
+the errors (estimate minus truth) of the zenith ionospheric delay ``I_z`` and of the
+sea-level zenith tropospheric delay ``T_z``. The filter starts from the a-priori zenith
+delays of the context (standard-model values a receiver applies, never the simulator's)
+with their 1-sigma as prior, and models the residual from the a-priori value as a
+first-order Gauss-Markov process with stationary sigma equal to that prior sigma:
+
+    d' = -d / tau + w,   Phi = exp(-t / tau),   Qd = sigma^2 (1 - exp(-2 t / tau))    (TC.5)
+
+(options ``ionosphere_tau_s`` = 1800 s, ``troposphere_tau_s`` = 3600 s; ``math.inf``
+makes them random constants). The time constants are a modelling choice, not published
+figures: a vertical ionospheric delay changes on the scale of half an hour to hours
+(diurnal cycle), the troposphere more slowly; the simulator's delays are constant in an
+episode, and the Gauss-Markov only keeps the filter from locking onto a stale value.
+The predicted pseudorange gets the slant delays (the pseudorange rate none: the
+simulator, like most receivers' Doppler models, leaves the atmospheric rates of
+< 1 cm/s out)::
+
+    rho_i += I_z F(E_i) + T_z exp(-h / H_T) m(E_i)                                  (TC.6)
+    F(E) = 1 / sqrt(1 - (R cos E / (R + h_I))^2)        thin shell (Misra & Enge ch. 5)
+    m(E) = 1.001 / sqrt(0.002001 + sin^2 E)             RTCA DO-229D A.4.2.4
+
+with ``E_i`` the elevation above the geodetic horizon of the estimated position, R the
+Earth model's equatorial radius, ``h_I`` and ``H_T`` the context's shell and scale
+heights. Partial derivatives (columns of the pseudorange rows)::
+
+    d rho_i / d I_z = F(E_i),   d rho_i / d T_z = exp(-h / H_T) m(E_i)
+    d rho_i / d p_n += (I_z dF/ds + T_z exp(-h/H_T) dm/ds) ds_i/dp_n
+                       - [0, 0, T_z exp(-h/H_T) m(E_i) / H_T]                        (TC.7)
+    dF/ds = -k^2 s F^3 (k = R / (R + h_I)),   dm/ds = -s m^3 / 1.001^2,   s = sin E
+    ds_i/dp_n = -C_en (U - u_i s_i) / |r_sat_i - r_e| + [u_i . E / (R_E + h),
+                u_i . N / (R_N + h), 0]
+
+(U, N, E the ECEF unit vectors of the local axes: the first term is the turn of the line
+of sight, the second the tilt of the local vertical; both are ~1e-5 m/m and kept for an
+exact Jacobian). The functions are written here from the published formulas; the
+truth-side :class:`navsim.sensors.gnss.GnssErrorModel` is not read by the filter. When
+the context says the atmosphere is absent, or ``atmosphere="none"``, the filter is the
+17-state one above, number for number.
+
 Observables of every valid satellite i at a GNSS epoch (seed 003 eqs. (2), (3), with the
 same-instant geometry of :mod:`navsim.sensors.gnss`)::
 
@@ -60,7 +104,8 @@ never stale, and ``step`` and ``step_batch`` agree). The clock error model (TC.1
 INS error model do not act on each other, so F and Qc are block diagonal: the engine's
 15 x 15 block is propagated as for any INS, and the clock block and the cross-covariance
 ride beside it with ``P_nc(tau) = Phi_15(tau) P_nc Phi_c(tau)^T`` (the 17 x 17 matrix is
-assembled only at updates). The strapdown body terms are computed once per batch and the
+assembled only at updates); the atmospheric states join the clock in that auxiliary
+block (TC.5 acts on neither the INS nor the clock). The strapdown body terms are computed once per batch and the
 INS runs over all the steps between epochs in one sequential pass in ``step_batch``.
 
 Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, one core of the development
@@ -82,6 +127,12 @@ References
        eqs. 14.126-14.129) and 9.4.2 (clock states).
 .. [3] Brown R.G., Hwang P.Y.C., Introduction to Random Signals and Applied Kalman
        Filtering, 4th ed., 2012, section 9.3 (two-state clock model).
+.. [5] Misra P., Enge P., Global Positioning System: Signals, Measurements and
+       Performance, 2nd ed., 2006, chapter 5 (thin-shell obliquity factor, 350 km).
+.. [6] RTCA DO-229D (2006), Appendix A.4.2.4 (tropospheric model and mapping function,
+       sigma_TVE = 0.12 m) and J.2.3 (residual error of the broadcast ionospheric model).
+.. [7] Klobuchar J.A. (1987), Ionospheric time-delay algorithm for single-frequency GPS
+       users, IEEE Trans. AES 23(3), 325-331 (the broadcast model, its 5 ns constant term).
 .. [4] Julier S.J., Uhlmann J.K. (2004), Unscented filtering and nonlinear estimation,
        Proc. IEEE 92(3); Wan E.A., van der Merwe R. (2000), The unscented Kalman filter
        for nonlinear estimation (scaled sigma points, weights).
@@ -108,6 +159,10 @@ __all__ = [
     "sigma_points",
     "unscented_update",
     "unscented_predict",
+    "ionosphere_obliquity",
+    "troposphere_mapping",
+    "atmosphere_delays",
+    "atmosphere_jacobian",
 ]
 
 CB, CD = 15, 16
@@ -183,6 +238,105 @@ def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e
     if n_states > CD:
         J[:m, CB] = 1.0
         J[m:, CD] = 1.0
+    return J
+
+
+# ============================================================================ atmosphere
+def ionosphere_obliquity(elevation, shell_height_m: float = 350_000.0, earth_radius_m: float = 6_378_137.0):
+    """Thin-shell ionospheric obliquity factor F(E) = 1 / sqrt(1 - (R cos E / (R + h_I))^2) (TC.6).
+
+    Parameters
+    ----------
+    elevation : float or array, rad. shell_height_m : h_I, m. earth_radius_m : R, m.
+
+    Returns
+    -------
+    F : same shape as ``elevation`` (1 at the zenith).
+    """
+    k = earth_radius_m / (earth_radius_m + shell_height_m)
+    c = np.cos(np.asarray(elevation, dtype=float))
+    return 1.0 / np.sqrt(1.0 - (k * c) ** 2)
+
+
+def troposphere_mapping(elevation):
+    """RTCA DO-229D tropospheric mapping m(E) = 1.001 / sqrt(0.002001 + sin^2 E) (TC.6).
+
+    ``elevation`` in rad; m(90 deg) = 1.001/sqrt(1.002001) = 1 to 1e-9.
+    """
+    s = np.sin(np.asarray(elevation, dtype=float))
+    return 1.001 / np.sqrt(0.002001 + s * s)
+
+
+def _sky(lat, lon, h, sat_pos_e, earth):
+    """sin(elevation) (..., m), unit lines of sight (..., m, 3), ranges, C_en, r_e."""
+    r_e = earth.geodetic_to_ecef(lat, lon, h)
+    c_en = mat_en(lat, lon)
+    los = sat_pos_e - r_e[..., None, :]
+    rho = np.sqrt(np.einsum("...mi,...mi->...m", los, los))
+    u = los / rho[..., None]
+    s = np.einsum("...mi,...i->...m", u, c_en[..., 2, :])  # u . up (geodetic vertical)
+    return s, u, rho, c_en
+
+
+def _maps(s, k, h, scale_height_m):
+    """F, m and the tropospheric height factor from s = sin E (TC.6)."""
+    F = 1.0 / np.sqrt(1.0 - k * k * (1.0 - s * s))
+    m = 1.001 / np.sqrt(0.002001 + s * s)
+    return F, m, np.exp(-np.asarray(h, dtype=float) / scale_height_m)
+
+
+def atmosphere_delays(lat, lon, h, sat_pos_e, ionosphere_zenith_m, troposphere_zenith_m, earth, *,
+                      shell_height_m: float = 350_000.0, scale_height_m: float = 8_000.0):
+    """Slant ionospheric and tropospheric code delays (TC.6) of m satellites.
+
+    Parameters
+    ----------
+    lat, lon, h : float or (N,) arrays
+        Receiver geodetic position, rad, rad, m.
+    sat_pos_e : (m, 3)
+        Satellite ECEF positions, m.
+    ionosphere_zenith_m, troposphere_zenith_m : float or (N,)
+        Vertical ionospheric delay and sea-level zenith tropospheric delay, m.
+    earth : EarthModel (its equatorial radius is the R of the thin shell).
+    shell_height_m, scale_height_m : float
+        Ionospheric shell height and tropospheric scale height, m.
+
+    Returns
+    -------
+    iono, tropo : (..., m), m; leading shape that of ``lat``.
+    """
+    s, _, _, _ = _sky(lat, lon, h, sat_pos_e, earth)
+    k = earth.a / (earth.a + shell_height_m)
+    F, m, height = _maps(s, k, h, scale_height_m)
+    iono = np.asarray(ionosphere_zenith_m, dtype=float)[..., None] * F
+    tropo = (np.asarray(troposphere_zenith_m, dtype=float) * height)[..., None] * m
+    return iono, tropo
+
+
+def atmosphere_jacobian(lat: float, lon: float, h: float, sat_pos_e, ionosphere_zenith_m: float,
+                        troposphere_zenith_m: float, earth, *, shell_height_m: float = 350_000.0,
+                        scale_height_m: float = 8_000.0) -> np.ndarray:
+    """Partial derivatives (m, 5) of the total slant delay I + T (TC.7).
+
+    Columns: position (metres along E, N, U, through the elevation and the height),
+    then the zenith ionospheric and sea-level zenith tropospheric delays.
+    """
+    s, u, rho, c_en = _sky(lat, lon, h, sat_pos_e, earth)
+    r_n, r_e_rad = (float(x) for x in earth.radii(lat))
+    k = earth.a / (earth.a + shell_height_m)
+    F, m, height = _maps(s, k, h, scale_height_m)
+    t_h = troposphere_zenith_m * height
+    east, north, up = c_en
+    # ds/dp_n: line of sight turning, then the local vertical tilting
+    ds = -((up - u * s[:, None]) @ c_en.T) / rho[:, None]
+    ds[:, 0] += (u @ east) / (r_e_rad + h)
+    ds[:, 1] += (u @ north) / (r_n + h)
+    d_delay_ds = ionosphere_zenith_m * (-k * k * s * F**3) + t_h * (-s * m**3 / 1.001**2)
+    J = np.empty((len(s), 5))
+    J[:, 0:3] = d_delay_ds[:, None] * ds
+    J[:, 2] -= t_h * m / scale_height_m
+    J[:, 3] = F
+    J[:, 4] = height * m
     return J
 
 
@@ -283,59 +437,94 @@ def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _ClockEngine(ErrorStateIns):
-    """:class:`ErrorStateIns` plus two receiver-clock states (17 states in all).
+    """:class:`ErrorStateIns` plus auxiliary states: receiver clock (2) and atmosphere (2).
 
-    The clock dynamics (TC.1) do not involve the INS errors and vice versa, so F and Qc
-    are block diagonal and over an interval ``Phi = diag(Phi_15, Phi_c)``: the engine
-    keeps propagating its 15 x 15 block untouched, and this class carries the clock
-    block ``P_cc`` and the cross-covariance ``P_nc`` from the interval start,
-    ``P_nc(tau) = Phi_15(tau) P_nc Phi_c(tau)^T``, ``P_cc(tau) = Phi_c P_cc Phi_c^T +
-    Qd_c``, with the engine's own ``Phi_15`` (so nothing of its series is duplicated).
-    The full 17 x 17 matrix is assembled at updates only.
+    The clock dynamics (TC.1) and the atmospheric Gauss-Markov processes (TC.5) do not
+    involve the INS errors and vice versa, so F and Qc are block diagonal and over an
+    interval ``Phi = diag(Phi_15, Phi_a)``: the engine keeps propagating its 15 x 15
+    block untouched, and this class carries the auxiliary block ``P_aa`` and the
+    cross-covariance ``P_na`` from the interval start, ``P_na(tau) = Phi_15(tau) P_na
+    Phi_a(tau)^T``, ``P_aa(tau) = Phi_a P_aa Phi_a^T + Qd_a``, with the engine's own
+    ``Phi_15`` (so nothing of its series is duplicated). The full matrix is assembled at
+    updates only.
+
+    ``atmosphere`` is None (no atmospheric states) or ``(apriori, sigma, tau)``, each
+    (ionosphere, troposphere): a-priori zenith delays (m), their 1-sigma (m) and the
+    Gauss-Markov time constants (s, ``inf`` for random constants).
     """
 
-    def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool, **kw):
-        self.n_states = 17 if with_clock else 15
+    def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool,
+                 atmosphere=None, **kw):
+        self.with_clock = bool(with_clock)
+        self.with_atmosphere = atmosphere is not None
+        self.atm_index = 15 + (2 if self.with_clock else 0)
+        self.n_aux = (2 if self.with_clock else 0) + (2 if self.with_atmosphere else 0)
+        self.n_states = 15 + self.n_aux
         self.clock = np.zeros(2)
         self._clock_psd = clock_psd
-        self.P_nc = np.zeros((15, 2))
-        self.P_cc = np.diag([clock_sigma[0] ** 2, clock_sigma[1] ** 2])
-        self._fresh = True  # the next interval start carries no clock propagation
+        variances = [clock_sigma[0] ** 2, clock_sigma[1] ** 2] if self.with_clock else []
+        if self.with_atmosphere:
+            apriori, sigma, tau = (np.asarray(a, dtype=float) for a in atmosphere)
+            self.atm_apriori = apriori.copy()
+            self.atm = apriori.copy()  # estimated zenith delays [I_z, T_z], m
+            self._atm_var = sigma**2
+            self._atm_tau = tau
+            variances += list(self._atm_var)
+        self.P_na = np.zeros((15, self.n_aux))
+        self.P_aa = np.diag(variances) if variances else np.zeros((0, 0))
+        self._fresh = True  # the next interval start carries no auxiliary propagation
         super().__init__(context, prior, noise, **kw)
 
+    def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """Phi_a and Qd_a of the auxiliary states over tau: (TC.1), (TC.5)."""
+        if not self.with_atmosphere:
+            return _clock_transition(tau, self._clock_psd)
+        decay = np.exp(-tau / self._atm_tau)  # (TC.5), 1 for a random constant
+        phi = np.zeros((self.n_aux, self.n_aux))
+        q = np.zeros((self.n_aux, self.n_aux))
+        a = self.atm_index - 15
+        if self.with_clock:
+            phi[:2, :2], q[:2, :2] = _clock_transition(tau, self._clock_psd)
+        phi[a, a], phi[a + 1, a + 1] = decay
+        q[a, a], q[a + 1, a + 1] = self._atm_var * (1.0 - decay * decay)
+        return phi, q
+
     def _clock_blocks(self) -> tuple[np.ndarray, np.ndarray]:
-        """P_nc and P_cc at the current step of the interval."""
+        """P_na and P_aa at the current step of the interval."""
         tau = self._j * self.dt
         if tau == 0.0:
-            return self.P_nc, self.P_cc
+            return self.P_na, self.P_aa
         phi = self._series.phi(np.array([tau]))[0]
-        phi_c, q_c = _clock_transition(tau, self._clock_psd)
-        return phi @ self.P_nc @ phi_c.T, phi_c @ self.P_cc @ phi_c.T + q_c
+        phi_a, q_a = self._aux_transition(tau)
+        return phi @ self.P_na @ phi_a.T, phi_a @ self.P_aa @ phi_a.T + q_a
 
     def _start_interval(self, P: np.ndarray) -> None:
-        if self.n_states == 17 and not self._fresh:
-            # the engine restarts an interval on its own: carry the clock blocks to here
-            self.P_nc, self.P_cc = self._clock_blocks()
+        if self.n_aux and not self._fresh:
+            # the engine restarts an interval on its own: carry the auxiliary blocks to here
+            self.P_na, self.P_aa = self._clock_blocks()
         self._fresh = False
         super()._start_interval(P)
 
     def full_covariance(self) -> np.ndarray:
-        """The 17 x 17 (or 15 x 15) covariance at the current step."""
+        """The (15 + n_aux)-square covariance at the current step."""
         P = self.covariance
-        if self.n_states == 15:
+        if not self.n_aux:
             return P
-        P_nc, P_cc = self._clock_blocks()
-        full = np.empty((17, 17))
+        P_na, P_aa = self._clock_blocks()
+        n = self.n_states
+        full = np.empty((n, n))
         full[:15, :15] = P
-        full[:15, CB:] = P_nc
-        full[CB:, :15] = P_nc.T
-        full[CB:, CB:] = P_cc
+        full[:15, 15:] = P_na
+        full[15:, :15] = P_na.T
+        full[15:, 15:] = P_aa
         return full
 
     def advance_body(self, body, start: int = 0, stop: int | None = None):
         rows, cov = super().advance_body(body, start, stop)
-        if self.n_states == 17:
+        if self.with_clock:
             self.clock[0] += self.clock[1] * len(rows) * self.dt  # (TC.1) mean
+        if self.with_atmosphere:  # (TC.5) mean: the residual decays towards the a-priori value
+            self.atm = self.atm_apriori + (self.atm - self.atm_apriori) * np.exp(-len(rows) * self.dt / self._atm_tau)
         return rows, cov
 
     def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
@@ -347,9 +536,13 @@ class _ClockEngine(ErrorStateIns):
         self.gyro_bias = self.gyro_bias + dx[BG]
         self.accel_bias = self.accel_bias + dx[BA]
         P_new = self._guard(P_new)
-        if self.n_states == 17:
-            self.clock = self.clock - dx[CB:CD + 1]  # estimate minus truth: remove it
-            self.P_nc, self.P_cc = P_new[:15, CB:].copy(), P_new[CB:, CB:].copy()
+        if self.n_aux:
+            if self.with_clock:
+                self.clock = self.clock - dx[CB:CD + 1]  # estimate minus truth: remove it
+            if self.with_atmosphere:
+                a = self.atm_index
+                self.atm = self.atm - dx[a:a + 2]
+            self.P_na, self.P_aa = P_new[:15, 15:].copy(), P_new[15:, 15:].copy()
             self._fresh = True
         self._start_interval(P_new[:15, :15].copy())
 
@@ -375,8 +568,17 @@ class TightlyCoupledOptions:
     kappa: float = 0.0
     pseudorange_sigma_m: float | None = None
     doppler_sigma_mps: float | None = None
+    atmosphere: str = "auto"
+    ionosphere_tau_s: float = 1800.0
+    troposphere_tau_s: float = 3600.0
 
     def __post_init__(self):
+        if self.atmosphere not in ("auto", "none"):
+            raise ConfigError("tightly.atmosphere", "'auto' or 'none'", self.atmosphere)
+        for name in ("ionosphere_tau_s", "troposphere_tau_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 0.0):
+                raise ConfigError(f"tightly.{name}", "a positive time constant, s (math.inf: random constant)", value)
         for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
@@ -414,8 +616,15 @@ class _TightlyCoupled:
             clock_sigma = (TINY_CLOCK_BIAS_M, TINY_CLOCK_DRIFT_MPS)
             clock_psd = (0.0, 0.0)
         steps = max(1, round(opt.covariance_period_s / context.nav_period_s))
+        atmosphere = None
+        if opt.atmosphere == "auto" and getattr(gnss, "atmosphere_modelled", False):
+            atmosphere = ((gnss.ionosphere_zenith_m, gnss.troposphere_zenith_m),
+                          (gnss.ionosphere_zenith_sigma_m, gnss.troposphere_zenith_sigma_m),
+                          (opt.ionosphere_tau_s, opt.troposphere_tau_s))
+            self._shell_height_m = float(gnss.ionosphere_shell_height_m)
+            self._scale_height_m = float(gnss.troposphere_scale_height_m)
         self.engine = _ClockEngine(context, prior, noise, clock_sigma=clock_sigma, clock_psd=clock_psd,
-                                   with_clock=opt.clock == "auto", interval_steps=steps,
+                                   with_clock=opt.clock == "auto", atmosphere=atmosphere, interval_steps=steps,
                                    coning=opt.coning, sculling=opt.sculling, position=opt.position,
                                    estimate_biases=opt.estimate_biases)
         self.earth = context.earth
@@ -466,8 +675,16 @@ class _TightlyCoupled:
 
     def _predicted(self, sat_pos, sat_vel):
         st, eng = self.engine.state, self.engine
-        cb, cd = (eng.clock if eng.n_states == 17 else (0.0, 0.0))
-        return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth)
+        cb, cd = (eng.clock if eng.with_clock else (0.0, 0.0))
+        rho, rate = predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth)
+        if eng.with_atmosphere:  # (TC.6) a-priori plus estimated residual zenith delays, mapped
+            iono, tropo = self._slant(st.lat, st.lon, st.h, sat_pos, eng.atm[0], eng.atm[1])
+            rho = rho + iono + tropo
+        return rho, rate
+
+    def _slant(self, lat, lon, h, sat_pos, iono_zenith, tropo_zenith):
+        return atmosphere_delays(lat, lon, h, sat_pos, iono_zenith, tropo_zenith, self.earth,
+                                 shell_height_m=self._shell_height_m, scale_height_m=self._scale_height_m)
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):  # pragma: no cover - subclasses
         raise NotImplementedError
@@ -477,8 +694,10 @@ class _TightlyCoupled:
         eng = self.engine
         extra = {"gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy(), "n_used": self.n_used,
                  "diverged": bool(self.diverged or eng.diverged), "cholesky_fallbacks": self.cholesky_fallbacks}
-        if eng.n_states == 17:
+        if eng.with_clock:
             extra["clock_bias_m"], extra["clock_drift_mps"] = float(eng.clock[0]), float(eng.clock[1])
+        if eng.with_atmosphere:
+            extra["ionosphere_zenith_m"], extra["troposphere_zenith_m"] = float(eng.atm[0]), float(eng.atm[1])
         return extra
 
     def step(self, measurement: Measurement) -> Estimate:
@@ -524,7 +743,7 @@ class _TightlyCoupled:
 
 
 class TightlyCoupledEkf(_TightlyCoupled):
-    """Error-state EKF on pseudoranges and pseudorange rates (17 or 15 states).
+    """Error-state EKF on pseudoranges and pseudorange rates (15 to 19 states).
 
     Parameters (keywords, all optional)
     -----------------------------------
@@ -546,6 +765,13 @@ class TightlyCoupledEkf(_TightlyCoupled):
     pseudorange_sigma_m, doppler_sigma_mps : float, optional
         Measurement sigmas assumed instead of the context's nominal ones (tuning, e.g.
         for unmodelled atmospheric delays). Floors: 1 mm and 0.1 mm/s.
+    atmosphere : {"auto", "none"}
+        "auto": when the context says the atmosphere is modelled, apply its a-priori
+        slant delays and estimate the residual zenith ionospheric and tropospheric delays
+        (two more states, (TC.5)-(TC.7)); "none": ignore the atmosphere.
+    ionosphere_tau_s, troposphere_tau_s : float
+        Gauss-Markov time constants of the residual zenith delays, s (defaults 1800 and
+        3600; ``math.inf``: random constants).
 
     See the module docstring for the model and equations.
     """
@@ -553,10 +779,16 @@ class TightlyCoupledEkf(_TightlyCoupled):
     kind = "ekf"
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
-        st = self.engine.state
+        st, eng = self.engine.state, self.engine
         rho, rate = self._predicted(sat_pos, sat_vel)
         J = observation_jacobian(st.lat, st.lon, st.h, st.velocity_n, sat_pos, sat_vel, self.earth,
-                                 self.engine.n_states)
+                                 eng.atm_index)
+        if eng.with_atmosphere:  # (TC.7) position partials and the two zenith-delay columns
+            J_atm = atmosphere_jacobian(st.lat, st.lon, st.h, sat_pos, eng.atm[0], eng.atm[1], self.earth,
+                                        shell_height_m=self._shell_height_m, scale_height_m=self._scale_height_m)
+            J = np.concatenate([J, np.zeros((2 * m, 2))], axis=1)
+            J[:m, 0:3] += J_atm[:, 0:3]
+            J[:m, eng.atm_index:] = J_atm[:, 3:]
         if self.options.use_doppler:
             h = np.concatenate([rho, rate])
         else:
@@ -581,7 +813,7 @@ class TightlyCoupledUkf(_TightlyCoupled):
         st, eng = self.engine.state, self.engine
         earth = self.earth
         r_n, r_e = (float(x) for x in earth.radii(st.lat))
-        clock = eng.clock if eng.n_states == 17 else np.zeros(2)
+        clock = eng.clock if eng.with_clock else np.zeros(2)
         doppler = self.options.use_doppler
         cos_lat = math.cos(st.lat)
 
@@ -591,11 +823,15 @@ class TightlyCoupledUkf(_TightlyCoupled):
             lon = st.lon - X[:, 0] / ((r_e + st.h) * cos_lat)
             h = st.h - X[:, 2]
             v = st.velocity_n[None, :] - X[:, 3:6]
-            if eng.n_states == 17:
+            if eng.with_clock:
                 cb, cd = clock[0] - X[:, CB], clock[1] - X[:, CD]
             else:
                 cb = cd = np.zeros(len(X))
             rho, rate = predict_observables(lat, lon, h, v, cb, cd, sat_pos, sat_vel, earth)
+            if eng.with_atmosphere:  # (TC.6) at each hypothesis' position and zenith delays
+                a = eng.atm_index
+                iono, tropo = self._slant(lat, lon, h, sat_pos, eng.atm[0] - X[:, a], eng.atm[1] - X[:, a + 1])
+                rho = rho + iono + tropo
             return np.concatenate([rho, rate], axis=1) if doppler else rho
 
         opt = self.options
