@@ -54,7 +54,7 @@ from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import outages as outage_mod
 
-__all__ = ["STREAMS", "Simulator", "ImuBlock", "Chunk", "Prior", "Start", "build_track", "build_profile"]
+__all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile"]
 
 STREAMS = ("motion", "imu", "gnss", "outages", "initial_error")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
@@ -123,6 +123,48 @@ class Chunk:
 
     def __len__(self) -> int:
         return len(self.t)
+
+
+@dataclass(frozen=True, slots=True)
+class ChunkBatch:
+    """The chunks of B lockstep episodes of one scenario (:class:`SimulatorBatch`).
+
+    Attributes
+    ----------
+    step0, t, gnss_step : as :class:`Chunk` (shared).
+    truth : TrueState
+        The true state, shared by all members (one motion).
+    imu : ImuBlock
+        Arrays with a leading member axis, e.g. ``dtheta_r`` (B, n, R, 3).
+    gnss : GnssEpochs or None
+        Arrays with a leading member axis (B, k, ...); the geometry (``t``,
+        ``sat_pos_e``, ``sat_vel_e``, ``elevation``, ``azimuth``) as broadcast views.
+    receiver_outage : (B, k) bool
+    """
+
+    step0: int
+    t: np.ndarray
+    truth: TrueState
+    imu: ImuBlock
+    gnss: object | None
+    gnss_step: np.ndarray
+    receiver_outage: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def size(self) -> int:
+        """Number of members B."""
+        return self.imu.dtheta_r.shape[0]
+
+    def member(self, j: int) -> Chunk:
+        """The :class:`Chunk` of member j (views, no copy)."""
+        imu = ImuBlock(*(getattr(self.imu, f)[j] for f in ImuBlock.__slots__))
+        gnss = None if self.gnss is None else type(self.gnss)(
+            **{f: getattr(self.gnss, f)[j] for f in type(self.gnss).__slots__})
+        return Chunk(step0=self.step0, t=self.t, truth=self.truth, imu=imu, gnss=gnss, gnss_step=self.gnss_step,
+                     receiver_outage=self.receiver_outage[j])
 
 
 @dataclass(frozen=True, slots=True)
@@ -355,66 +397,7 @@ class Simulator:
     # -- generation --------------------------------------------------------------------
     def advance(self, n_steps: int = 1) -> Chunk:
         """Generate the next ``n_steps`` navigation steps (fewer at the episode's end)."""
-        self._require_reset()
-        n = min(int(n_steps), self.timing.steps - self._step)
-        if n <= 0:
-            raise RuntimeError("the episode is over: call reset()")
-        timing = self.timing
-        m, h, dt = timing.samples_per_step, timing.imu_period_s, timing.nav_period_s
-        k0 = self._step
-        steps = np.arange(k0, k0 + n)
-        # sample start times from integer ticks (never a float accumulator)
-        sample_index = k0 * m + np.arange(n * m)
-        t_start = sample_index * h
-        t_end_steps = (steps + 1) * dt
-        # --- ideal IMU increments and truth at sample ends (block Chebyshev or direct)
-        ideal = self.truthgen.samples(k0 * m, n * m)
-        truth = ideal.truth if m == 1 else _every(ideal.truth, m)
-        dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
-        omega_end, force_end = ideal.omega_end, ideal.force_end
-        if self._imu_error_free:
-            out = imu_mod.ImuOutput(dtheta_true, dv_true, omega_end, force_end)
-        else:
-            out, self.imu_state = imu_mod.apply_imu_errors(
-                t_start, h, dtheta_true, dv_true, omega_end, force_end, self.imu_model, self.imu_state,
-                self.rngs["imu"])
-        R = dtheta_true.shape[1]
-        dtheta_sample = out.dtheta_r.reshape(n, m, R, 3)
-        dv_sample = out.dv_r.reshape(n, m, R, 3)
-        if m == 1:
-            dtheta_step, dv_step = dtheta_sample[:, 0], dv_sample[:, 0]
-        else:
-            dtheta_step = imu_mod.compose_multiple_integrals(dtheta_sample, h)
-            dv_step = imu_mod.compose_multiple_integrals(dv_sample, h)
-        imu = ImuBlock(
-            dtheta_r=dtheta_step, dv_r=dv_step, dtheta_sample=dtheta_sample, dv_sample=dv_sample,
-            rate_b=out.rate_b.reshape(n, m, 3), accel_b=out.accel_b.reshape(n, m, 3),
-        )
-        # --- GNSS epochs at the end of every steps_per_epoch-th step
-        epoch_steps = np.flatnonzero((steps + 1) % timing.steps_per_epoch == 0)
-        gnss_epochs, receiver_outage = None, np.zeros(len(epoch_steps), dtype=bool)
-        if self.scenario.gnss.enabled and not len(epoch_steps):
-            # no epoch in these steps: nothing is drawn or advanced, reuse the empty epochs
-            if self._no_epochs is None:
-                self._no_epochs, _ = gnss_mod.simulate_epochs(
-                    t_end_steps[:0], truth.position_e[:0], truth.velocity_e[:0], self.constellation,
-                    self.gnss_model, self.gnss_state, np.random.default_rng(0), self.earth)
-            gnss_epochs = self._no_epochs
-        elif self.scenario.gnss.enabled:
-            idx = epoch_steps
-            gnss_epochs, self.gnss_state = gnss_mod.simulate_epochs(
-                t_end_steps[idx], truth.position_e[idx], truth.velocity_e[idx], self.constellation,
-                self.gnss_model, self.gnss_state, self.rngs["gnss"], self.earth,
-            )
-            visible, receiver_outage, self.outage_state = outage_mod.visibility(
-                t_end_steps[idx], truth.s[idx], truth.heading[idx], gnss_epochs.elevation, gnss_epochs.azimuth,
-                self.track.segments, self.outage_model, self.outage_state, self.rngs["outages"],
-                prn=self.constellation.prn,
-            )
-            gnss_epochs = dataclasses.replace(gnss_epochs, valid=gnss_epochs.valid & visible)
-        self._step += n
-        return Chunk(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
-                     gnss_step=epoch_steps, receiver_outage=receiver_outage)
+        return _generate([self], n_steps).member(0)
 
     def step(self, buffer_steps: int = 1000) -> tuple[Chunk, int]:
         """Serve the next single step as ``(chunk, i)``: step ``i`` of a buffered chunk.
@@ -456,6 +439,164 @@ class Simulator:
         """Reset and generate a whole episode; returns the start and the list of chunks."""
         start = self.reset(seed)
         return start, list(self.chunks(chunk_steps))
+
+
+def _generate(sims: list[Simulator], n_steps: int) -> ChunkBatch:
+    """Generate the next steps of simulators in lockstep on one scenario and truth.
+
+    The truth, the satellite geometry and the deterministic outage masks are computed
+    once; each simulator's sensor errors come from its own states and streams through the
+    batched sensor functions, so simulator j gets exactly the numbers it would get alone.
+    """
+    lead = sims[0]
+    for sim in sims:
+        sim._require_reset()
+    k0 = lead._step
+    if any(sim._step != k0 for sim in sims):
+        raise RuntimeError("simulators out of lockstep")
+    timing = lead.timing
+    n = min(int(n_steps), timing.steps - k0)
+    if n <= 0:
+        raise RuntimeError("the episode is over: call reset()")
+    members = len(sims)
+    m, h, dt = timing.samples_per_step, timing.imu_period_s, timing.nav_period_s
+    steps = np.arange(k0, k0 + n)
+    # sample start times from integer ticks (never a float accumulator)
+    sample_index = k0 * m + np.arange(n * m)
+    t_start = sample_index * h
+    t_end_steps = (steps + 1) * dt
+    # --- ideal IMU increments and truth at sample ends (block Chebyshev or direct), once
+    ideal = lead.truthgen.samples(k0 * m, n * m)
+    truth = ideal.truth if m == 1 else _every(ideal.truth, m)
+    dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
+    omega_end, force_end = ideal.omega_end, ideal.force_end
+    if lead._imu_error_free:
+        def shared(a):
+            return np.broadcast_to(a, (members, *a.shape))
+        out = imu_mod.ImuOutput(shared(dtheta_true), shared(dv_true), shared(omega_end), shared(force_end))
+    else:
+        out, imu_states = imu_mod.apply_imu_errors_batch(
+            t_start, h, dtheta_true, dv_true, omega_end, force_end, lead.imu_model,
+            [sim.imu_state for sim in sims], [sim.rngs["imu"] for sim in sims])
+        for sim, state in zip(sims, imu_states):
+            sim.imu_state = state
+    R = dtheta_true.shape[1]
+    dtheta_sample = out.dtheta_r.reshape(members, n, m, R, 3)
+    dv_sample = out.dv_r.reshape(members, n, m, R, 3)
+    if m == 1:
+        dtheta_step, dv_step = dtheta_sample[:, :, 0], dv_sample[:, :, 0]
+    else:
+        dtheta_step = imu_mod.compose_multiple_integrals(dtheta_sample.reshape(members * n, m, R, 3), h)
+        dv_step = imu_mod.compose_multiple_integrals(dv_sample.reshape(members * n, m, R, 3), h)
+        dtheta_step = dtheta_step.reshape(members, n, R, 3)
+        dv_step = dv_step.reshape(members, n, R, 3)
+    imu = ImuBlock(
+        dtheta_r=dtheta_step, dv_r=dv_step, dtheta_sample=dtheta_sample, dv_sample=dv_sample,
+        rate_b=out.rate_b.reshape(members, n, m, 3), accel_b=out.accel_b.reshape(members, n, m, 3),
+    )
+    # --- GNSS epochs at the end of every steps_per_epoch-th step
+    epoch_steps = np.flatnonzero((steps + 1) % timing.steps_per_epoch == 0)
+    gnss_epochs, receiver_outage = None, np.zeros((members, len(epoch_steps)), dtype=bool)
+    if lead.scenario.gnss.enabled and not len(epoch_steps):
+        # no epoch in these steps: nothing is drawn or advanced, reuse the empty epochs
+        if lead._no_epochs is None:
+            empty, _ = gnss_mod.simulate_epochs(
+                t_end_steps[:0], truth.position_e[:0], truth.velocity_e[:0], lead.constellation,
+                lead.gnss_model, lead.gnss_state, np.random.default_rng(0), lead.earth)
+            for sim in sims:
+                sim._no_epochs = empty
+        no = lead._no_epochs
+        gnss_epochs = type(no)(**{f: np.broadcast_to(getattr(no, f), (members, *getattr(no, f).shape))
+                                  for f in type(no).__slots__})
+    elif lead.scenario.gnss.enabled:
+        idx = epoch_steps
+        geometry = gnss_mod.sky_geometry(t_end_steps[idx], truth.position_e[idx], lead.constellation, lead.earth)
+        gnss_epochs, gnss_states = gnss_mod.simulate_epochs_batch(
+            t_end_steps[idx], truth.position_e[idx], truth.velocity_e[idx], lead.constellation,
+            lead.gnss_model, [sim.gnss_state for sim in sims], [sim.rngs["gnss"] for sim in sims], lead.earth,
+            geometry=geometry,
+        )
+        visible, receiver_outage, outage_states = outage_mod.visibility_batch(
+            t_end_steps[idx], truth.s[idx], truth.heading[idx], gnss_epochs.elevation[0], gnss_epochs.azimuth[0],
+            lead.track.segments, lead.outage_model, [sim.outage_state for sim in sims],
+            [sim.rngs["outages"] for sim in sims], prn=lead.constellation.prn,
+        )
+        gnss_epochs = dataclasses.replace(gnss_epochs, valid=gnss_epochs.valid & visible)
+        for sim, g_state, o_state in zip(sims, gnss_states, outage_states):
+            sim.gnss_state, sim.outage_state = g_state, o_state
+    for sim in sims:
+        sim._step += n
+    return ChunkBatch(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
+                      gnss_step=epoch_steps, receiver_outage=receiver_outage)
+
+
+class SimulatorBatch:
+    """B episodes of one scenario in lockstep: one truth, B sets of sensor errors.
+
+    Member j, reset with seed ``seeds[j]``, produces exactly the numbers of
+    ``Simulator(scenario).reset(seeds[j])`` followed by the same ``advance`` calls: the
+    members are :class:`Simulator` objects sharing the immutable parts (track, motion,
+    constellation, truth generator) and each owning its random streams and sensor
+    states. The truth, the satellite geometry and the deterministic outage masks are
+    computed once per chunk and the sensor errors of all members in one vectorised pass
+    (:func:`navsim.sensors.imu.apply_imu_errors_batch`,
+    :func:`navsim.sensors.gnss.simulate_epochs_batch`,
+    :func:`navsim.sensors.outages.visibility_batch`). The native vector environment
+    stands on it.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Scripted motion only (external motion is pushed per episode).
+    size : int
+        Number of members B.
+
+    Examples
+    --------
+    >>> from navsim import load_scenario
+    >>> from navsim.simulator import SimulatorBatch
+    >>> batch = SimulatorBatch(load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}}), 3)
+    >>> starts = batch.reset([0, 1, 2])
+    >>> batch.advance(100).imu.dtheta_r.shape
+    (3, 100, 4, 3)
+    """
+
+    def __init__(self, scenario: Scenario, size: int):
+        import copy
+
+        if isinstance(size, bool) or int(size) != size or size < 1:
+            raise ConfigError("size", "a positive integer", size)
+        base = Simulator(scenario)
+        if isinstance(base.profile, ExternalMotion):
+            raise ConfigError("motion.profile", "scripted motion for a simulator batch", "external")
+        self.scenario = scenario
+        self.members = [base] + [copy.copy(base) for _ in range(int(size) - 1)]
+
+    def __len__(self) -> int:
+        return len(self.members)
+
+    @property
+    def timing(self):
+        return self.members[0].timing
+
+    @property
+    def step_index(self) -> int:
+        return self.members[0].step_index
+
+    @property
+    def done(self) -> bool:
+        return self.members[0].done
+
+    def reset(self, seeds) -> list[Start]:
+        """Reset every member; ``seeds`` is a sequence of B seeds (None: fresh entropy)."""
+        seeds = list(seeds)
+        if len(seeds) != len(self.members):
+            raise ConfigError("seeds", f"{len(self.members)} seeds", len(seeds))
+        return [sim.reset(seed) for sim, seed in zip(self.members, seeds)]
+
+    def advance(self, n_steps: int = 1) -> ChunkBatch:
+        """Generate the next ``n_steps`` steps of every member (fewer at the episode's end)."""
+        return _generate(self.members, n_steps)
 
 
 def _every(truth: TrueState, m: int) -> TrueState:
