@@ -16,18 +16,25 @@ from navsim.estimators._inserror import joseph_update
 from navsim.estimators.tightly import (
     TightlyCoupledEkf,
     TightlyCoupledUkf,
+    atmosphere_delays,
+    atmosphere_jacobian,
+    ionosphere_obliquity,
     observation_jacobian,
     predict_observables,
     sigma_points,
+    troposphere_mapping,
     unscented_predict,
     unscented_update,
 )
 from navsim.metrics import error_vector, nees
 from navsim.scenario import load_scenario
+from navsim.sensors.gnss import GnssErrorModel, elevation_azimuth
 from navsim.simulator import Simulator
 
 CLEAN_STANDALONE = {"preset": "standalone", "overrides": {"ionosphere_zenith_m": 0.0, "troposphere_zenith_m": 0.0,
                                                           "multipath_sigma_m": 0.0}}
+# the atmosphere on, multipath off: the filter's model when it estimates the zenith delays
+ATMOSPHERE_STANDALONE = {"preset": "standalone", "overrides": {"multipath_sigma_m": 0.0}}
 
 
 def _scenario(duration, outage=None, **more):
@@ -69,6 +76,11 @@ def test_registry_and_options():
         TightlyCoupledUkf(alpha=-1.0)
     with pytest.raises(ConfigError):
         make("tc-ekf", pseudorange_sigma_m=-1.0)
+    with pytest.raises(ConfigError):
+        make("tc-ukf", atmosphere="klobuchar")
+    with pytest.raises(ConfigError):
+        make("tc-ekf", ionosphere_tau_s=0.0)
+    make("tc-ekf", troposphere_tau_s=np.inf)  # random constant: allowed
 
 
 # ------------------------------------------------------------------------ Jacobians
@@ -111,6 +123,124 @@ def test_observation_jacobian_against_finite_differences(earth):
     assert np.allclose(fd[m:], J[m:], atol=1e-9)  # rate rows (position terms ~1e-4)
     assert np.max(np.abs(J[m:, 0:3])) > 1e-5  # the small terms are present
     assert np.all(J[:, 6:15] == 0.0)
+
+
+# ------------------------------------------------------------------------ atmosphere
+def _satellites(earth, lat, lon, h, n, seed, min_elevation_deg=3.0):
+    """n random satellites at ~26 600 km above ``min_elevation_deg`` (ECEF, m)."""
+    rng = np.random.default_rng(seed)
+    r_e = earth.geodetic_to_ecef(lat, lon, h)
+    up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])  # geodetic vertical
+    out = []
+    while len(out) < n:
+        d = rng.standard_normal(3)
+        p = d / np.linalg.norm(d) * 26.6e6
+        los = p - r_e
+        if los @ up / np.linalg.norm(los) > np.sin(np.radians(min_elevation_deg)):
+            out.append(p)
+    return np.array(out)
+
+
+def test_mapping_functions_closed_form():
+    r, shell = 6_378_137.0, 350_000.0
+    assert ionosphere_obliquity(np.pi / 2, shell, r) == 1.0  # zenith
+    assert troposphere_mapping(np.pi / 2) == pytest.approx(1.0, abs=1e-12)  # 1.001 = sqrt(1.002001)
+    # the thin shell by geometry: a ray leaving the receiver (radius R) at elevation E
+    # meets the shell (radius R + h_I) at zenith angle z; F = 1 / cos z
+    for elev in np.radians([0.0, 5.0, 10.0, 30.0, 60.0, 89.0]):
+        p = np.array([0.0, r])
+        d = np.array([np.cos(elev), np.sin(elev)])
+        b = p @ d
+        t = -b + np.sqrt(b * b + (r + shell) ** 2 - r * r)
+        q = p + t * d
+        cos_z = d @ q / np.linalg.norm(q)
+        assert ionosphere_obliquity(elev, shell, r) == pytest.approx(1.0 / cos_z, rel=1e-12)
+    # horizon value of the shell: (R + h) / sqrt((R + h)^2 - R^2) = 3.07
+    assert ionosphere_obliquity(0.0, shell, r) == pytest.approx((r + shell) / np.sqrt((r + shell) ** 2 - r * r))
+    # DO-229: horizon value 1.001 / sqrt(0.002001) = 22.38, ~1 / sin E at high elevation
+    assert troposphere_mapping(0.0) == pytest.approx(22.377, abs=1e-3)
+    for elev in np.radians([30.0, 45.0, 60.0, 75.0]):
+        assert troposphere_mapping(elev) * np.sin(elev) == pytest.approx(1.0, abs=3e-3)
+    e = np.radians(np.linspace(0.0, 90.0, 91))  # both fall monotonically from the horizon
+    assert np.all(np.diff(ionosphere_obliquity(e)) < 0) and np.all(np.diff(troposphere_mapping(e)) < 0)
+
+
+@pytest.mark.parametrize("earth", [WGS84, SPHERICAL])
+def test_slant_delays_match_the_simulator_model(earth):
+    """The filter's own formulas reproduce navsim.sensors.gnss.GnssErrorModel's delays
+    (the test reads the truth model; the estimator never does)."""
+    model = GnssErrorModel.preset("standalone")
+    lat, lon, h = 0.83, 0.62, 650.0
+    sat = _satellites(earth, lat, lon, h, 8, seed=11, min_elevation_deg=1.0)
+    elevation, _, _ = elevation_azimuth(earth.geodetic_to_ecef(lat, lon, h)[None], sat[None], earth)
+    kw = dict(shell_height_m=model.ionosphere_shell_height_m, scale_height_m=model.troposphere_scale_height_m)
+    iono, tropo = atmosphere_delays(lat, lon, h, sat, model.ionosphere_zenith_m, model.troposphere_zenith_m, earth, **kw)
+    assert np.allclose(iono, model.ionosphere_delay_m(elevation[0], earth), rtol=1e-10, atol=0)
+    assert np.allclose(tropo, model.troposphere_delay_m(elevation[0], h), rtol=1e-10, atol=0)
+    e = np.radians(np.linspace(0.0, 90.0, 19))
+    assert np.allclose(model.ionosphere_delay_m(e, earth),
+                       model.ionosphere_zenith_m * ionosphere_obliquity(e, model.ionosphere_shell_height_m, earth.a))
+    assert np.allclose(model.troposphere_delay_m(e, h),
+                       model.troposphere_zenith_m * np.exp(-h / 8000.0) * troposphere_mapping(e))
+    # the vectorised form (the UKF's sigma points) equals point-by-point evaluation
+    lats, lons, hs = lat + np.array([0.0, 1e-4, -2e-4]), lon + np.array([0.0, 3e-4, 1e-4]), h + np.array([0, 40, -90])
+    zi, zt = np.array([5.0, 4.0, 6.0]), np.array([2.4, 2.5, 2.3])
+    vi, vt = atmosphere_delays(lats, lons, hs, sat, zi, zt, earth, **kw)
+    for j in range(3):
+        i1, t1 = atmosphere_delays(lats[j], lons[j], hs[j], sat, zi[j], zt[j], earth, **kw)
+        assert np.allclose(vi[j], i1, rtol=1e-14) and np.allclose(vt[j], t1, rtol=1e-14)
+
+
+@pytest.mark.parametrize("earth", [WGS84, SPHERICAL])
+def test_atmosphere_jacobian_against_finite_differences(earth):
+    lat, lon, h = 0.8, 0.6, 1200.0
+    iono_z, tropo_z = 4.0, 2.45
+    sat = _satellites(earth, lat, lon, h, 7, seed=5, min_elevation_deg=5.0)
+    J = atmosphere_jacobian(lat, lon, h, sat, iono_z, tropo_z, earth)
+    r_n, r_e_rad = (float(x) for x in earth.radii(lat))
+
+    def total(x):  # x = [dE, dN, dU (m), dI_z, dT_z (m)]
+        la = lat + x[1] / (r_n + h)
+        lo = lon + x[0] / ((r_e_rad + h) * np.cos(lat))
+        i, t = atmosphere_delays(la, lo, h + x[2], sat, iono_z + x[3], tropo_z + x[4], earth)
+        return i + t
+
+    fd = np.zeros_like(J)
+    for k, step in enumerate([50.0, 50.0, 50.0, 0.1, 0.1]):
+        e = np.zeros(5)
+        e[k] = step
+        fd[:, k] = (total(e) - total(-e)) / (2 * step)
+    assert np.allclose(fd[:, :3], J[:, :3], rtol=1e-5, atol=1e-11)  # position terms ~1e-6..1e-4
+    assert np.allclose(fd[:, 3:], J[:, 3:], rtol=1e-10, atol=0)  # mapping factors ~1..10
+    assert np.max(np.abs(J[:, :2])) > 1e-6  # the elevation terms are present
+    assert np.all(J[:, 2] < 0)  # higher receiver: less troposphere below it
+
+
+def test_context_tells_a_nominal_atmosphere_not_the_truth():
+    def context(gnss):
+        sim = Simulator(_scenario(5.0, gnss=gnss))
+        sim.reset(0)
+        return make_context(sim).gnss
+
+    assert not context({"preset": "paper-2012"}).atmosphere_modelled
+    assert not context(CLEAN_STANDALONE).atmosphere_modelled
+    nominal, truth = context({"preset": "standalone"}), GnssErrorModel.preset("standalone")
+    assert nominal.atmosphere_modelled
+    # a-priori values from standard models, not the simulator's delays, which lie within
+    # the stated 1-sigma of them
+    assert nominal.ionosphere_zenith_m != truth.ionosphere_zenith_m
+    assert nominal.troposphere_zenith_m != truth.troposphere_zenith_m
+    assert abs(truth.ionosphere_zenith_m - nominal.ionosphere_zenith_m) < nominal.ionosphere_zenith_sigma_m
+    assert abs(truth.troposphere_zenith_m - nominal.troposphere_zenith_m) < nominal.troposphere_zenith_sigma_m
+    # the estimator module imports nothing of the truth-side sensor models
+    import ast
+    import inspect
+
+    import navsim.estimators.tightly as module
+    tree = ast.parse(inspect.getsource(module))
+    imported = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    imported += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    assert imported and not any("sensors" in name for name in imported)
 
 
 # ------------------------------------------------------------------------ UKF == KF
@@ -180,14 +310,39 @@ def test_batch_equals_step(cls):
     assert np.count_nonzero(~np.isnan(a.nis)) == 3  # epochs at 1, 2 and 4 s (3 s lost)
 
 
-def test_ukf_agrees_with_ekf_when_the_model_is_nearly_linear():
-    sc = _scenario(60.0)
+@pytest.mark.parametrize("cls", [TightlyCoupledEkf, TightlyCoupledUkf])
+def test_batch_equals_step_with_atmosphere(cls):
+    sc = _scenario(4.0, outage=[2.5, 3.5], gnss=ATMOSPHERE_STANDALONE)
+    a_est, b_est = cls(), cls()
+    a = run_episode(sc, a_est, seed=4, use_batch=True)
+    b = run_episode(sc, b_est, seed=4, use_batch=False)
+    assert a_est.engine.n_states == 19 and a_est.engine.with_atmosphere
+    assert np.allclose(a.est_lat, b.est_lat, rtol=0, atol=1e-13)
+    assert np.allclose(a.est_h, b.est_h, rtol=0, atol=1e-8)
+    assert np.allclose(a.est_cov, b.est_cov, rtol=1e-9, atol=1e-12)
+    assert np.allclose(np.nan_to_num(a.nis), np.nan_to_num(b.nis), rtol=1e-9)
+    for key in ("ionosphere_zenith_m", "troposphere_zenith_m"):
+        assert a_est.last_extra[key] == pytest.approx(b_est.last_extra[key], rel=1e-12)
+
+
+@pytest.mark.parametrize("gnss", [None, ATMOSPHERE_STANDALONE])
+def test_ukf_agrees_with_ekf_when_the_model_is_nearly_linear(gnss):
+    """With the atmosphere, this also checks that the EKF's linearised slant delays
+    (TC.7, its H) and the UKF's exact ones (TC.6, its sigma points) are assembled alike.
+    There, covariances are compared relative to sigma_i sigma_j (a few cross terms are
+    nearly zero: their ratio says nothing)."""
+    sc = _scenario(60.0, **({"gnss": gnss} if gnss else {}))
     a = run_episode(sc, TightlyCoupledEkf(), seed=5)
     b = run_episode(sc, TightlyCoupledUkf(), seed=5)
     ea, eb = error_vector(a), error_vector(b)
     sigma = np.sqrt(np.diagonal(a.est_cov, axis1=1, axis2=2))
     assert np.max(np.abs(ea[:, :6] - eb[:, :6]) / sigma[:, :6]) < 1e-3
-    assert np.allclose(a.est_cov, b.est_cov, rtol=1e-3, atol=1e-12)
+    if gnss is None:
+        assert np.allclose(a.est_cov, b.est_cov, rtol=1e-3, atol=1e-12)
+    else:
+        assert np.max(np.abs(a.est_cov - b.est_cov) / (sigma[:, :, None] * sigma[:, None, :])) < 1e-6
+        assert np.allclose(np.diagonal(a.est_cov, axis1=1, axis2=2), np.diagonal(b.est_cov, axis1=1, axis2=2),
+                           rtol=1e-4)
 
 
 @pytest.mark.parametrize("n_sats, factor", [(2, 0.9), (3, 0.3)])
@@ -275,6 +430,61 @@ def test_nees_short():
     inside, per_second = _inside_fraction(values, n)
     assert 0.6 * 9 < values[:, 1000:].mean() < 1.6 * 9
     assert inside > 0.6
+
+
+@pytest.mark.parametrize("cls", [TightlyCoupledEkf, TightlyCoupledUkf])
+def test_nees_atmosphere_short(cls):
+    """Cheap consistency check with the atmosphere on (standalone, multipath off: the
+    filter's model): 90 s with an outage 45-60 s, 4 seeds. Without the atmospheric
+    states the same filter's NEES is hundreds of times too large; with them the mean
+    lies in a broad band around 9 and the per-second seed means mostly in the 95 % band.
+    The zenith ionospheric delay (5 m in the simulator; a-priori 1.5 +- 4.5 m) is
+    learnt: posterior sigma below the prior's half, estimate within 3 sigma of the truth."""
+    n = 4
+    sc = _scenario(90.0, outage=[45.0, 60.0], gnss=ATMOSPHERE_STANDALONE)
+    truth_iono = GnssErrorModel.preset("standalone").ionosphere_zenith_m
+    values = []
+    for seed in range(n):
+        est = cls()
+        rec = run_episode(sc, est, seed=seed)
+        values.append(nees(error_vector(rec), rec.est_cov))
+        a = est.engine.atm_index
+        sigma_iono = np.sqrt(est.engine.full_covariance()[a, a])
+        assert sigma_iono < 0.5 * est.context.gnss.ionosphere_zenith_sigma_m
+        assert abs(est.last_extra["ionosphere_zenith_m"] - truth_iono) < 3.0 * sigma_iono
+    values = np.array(values)
+    inside, _ = _inside_fraction(values, n)
+    assert 0.6 * 9 < values[:, 1000:].mean() < 1.6 * 9
+    assert inside > 0.6
+    if cls is TightlyCoupledEkf:  # the gap this closes: the filter blind to the atmosphere
+        rec = run_episode(sc, cls(atmosphere="none"), seed=0)
+        assert nees(error_vector(rec), rec.est_cov)[1000:].mean() > 100 * 9
+
+
+def test_atmosphere_states_reduce_the_horizontal_error():
+    """Full standalone receiver (multipath too, not modelled beyond its sigma), 150 s,
+    2 seeds: horizontal RMS error with the atmospheric states well below that of the
+    filter blind to the atmosphere (measured 1000 s figures are in the module notes)."""
+    sc = _scenario(150.0, gnss={"preset": "standalone"})
+    rms = {}
+    for atmosphere in ("none", "auto"):
+        err = [error_vector(run_episode(sc, TightlyCoupledEkf(atmosphere=atmosphere), seed=s))[3000:, :2]
+               for s in range(2)]
+        rms[atmosphere] = float(np.sqrt(np.mean(np.square(err)) * 2))
+    assert rms["auto"] < 0.7 * rms["none"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cls", [TightlyCoupledEkf, TightlyCoupledUkf])
+def test_nees_atmosphere_20_seeds(cls):
+    """The atmosphere case: standalone receiver with ionosphere and troposphere, without
+    multipath (the filter's model), 300 s with a 60-s outage, 20 seeds."""
+    n = 20
+    sc = _scenario(300.0, outage=[150.0, 210.0], gnss=ATMOSPHERE_STANDALONE)
+    values = _nees_runs(cls, sc, range(n))
+    inside, _ = _inside_fraction(values, n)
+    assert 0.7 * 9 < values[:, 1000:].mean() < 1.3 * 9
+    assert inside > 0.85
 
 
 @pytest.mark.slow
