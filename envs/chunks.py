@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PreparedChunk", "prepare_chunk", "EpisodeTape", "TRUTH_COLUMNS"]
+__all__ = ["PreparedChunk", "prepare_chunk", "chunk_truth_table", "held_flags", "EpisodeTape", "TRUTH_COLUMNS"]
 
 TRUTH_COLUMNS = ("lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "roll", "k_north", "k_east", "s")
 """Columns of :attr:`PreparedChunk.truth`: the action layout, then the metres-per-radian
@@ -75,6 +75,45 @@ class PreparedChunk:
     chunk: object
 
 
+def chunk_truth_table(chunk, earth) -> tuple[np.ndarray, np.ndarray]:
+    """The truth rows (n, 12) in :data:`TRUTH_COLUMNS` order and, per step, the
+    chunk-local index of the GNSS epoch at its end (-1: none), of a Chunk or ChunkBatch."""
+    n = len(chunk)
+    tr = chunk.truth
+    r_n, r_e = earth.radii(tr.lat)
+    truth = np.empty((n, len(TRUTH_COLUMNS)))
+    truth[:, 0], truth[:, 1], truth[:, 2] = tr.lat, tr.lon, tr.h
+    truth[:, 3:6] = tr.velocity_n
+    truth[:, 6], truth[:, 7], truth[:, 8] = tr.heading, tr.pitch, tr.roll
+    truth[:, 9] = r_n + tr.h
+    truth[:, 10] = (r_e + tr.h) * np.cos(tr.lat)
+    truth[:, 11] = tr.s
+    epoch_at = np.full(n, -1, dtype=np.int64)
+    if chunk.gnss is not None and len(chunk.gnss_step):
+        epoch_at[chunk.gnss_step] = np.arange(len(chunk.gnss_step))
+    return truth, epoch_at
+
+
+def held_flags(epoch_at: np.ndarray, outage_epoch, n_valid_epoch, held_outage, held_n_valid):
+    """Per step, the receiver-outage flag and valid-channel count of the latest epoch at
+    or before the step, the held values (from the previous chunk) before the first one.
+
+    ``outage_epoch``, ``n_valid_epoch``: (..., k) per epoch; ``held_*``: scalars or (...,).
+    Returns two (..., n) arrays.
+    """
+    latest = np.maximum.accumulate(np.where(epoch_at >= 0, epoch_at, -1))
+    have = latest >= 0
+    at = np.maximum(latest, 0)
+    outage_epoch, n_valid_epoch = np.asarray(outage_epoch), np.asarray(n_valid_epoch)
+    if outage_epoch.shape[-1] == 0:  # no epoch in this chunk
+        shape = (*outage_epoch.shape[:-1], len(epoch_at))
+        return (np.broadcast_to(np.asarray(held_outage, dtype=bool)[..., None], shape).copy(),
+                np.broadcast_to(np.asarray(held_n_valid)[..., None], shape).copy())
+    outage = np.where(have, outage_epoch[..., at], np.asarray(held_outage)[..., None])
+    n_valid = np.where(have, n_valid_epoch[..., at], np.asarray(held_n_valid)[..., None])
+    return outage.astype(bool), n_valid.astype(np.int64)
+
+
 def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: int, rows: bool = True,
                   per_step_gnss: bool = True) -> PreparedChunk:
     """Prepare a :class:`~navsim.simulator.Chunk` (see :class:`PreparedChunk`).
@@ -86,25 +125,10 @@ def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: in
     """
     n = len(chunk)
     imu = chunk.imu
-    tr = chunk.truth
-    r_n, r_e = earth.radii(tr.lat)
-    truth = np.empty((n, len(TRUTH_COLUMNS)))
-    truth[:, 0], truth[:, 1], truth[:, 2] = tr.lat, tr.lon, tr.h
-    truth[:, 3:6] = tr.velocity_n
-    truth[:, 6], truth[:, 7], truth[:, 8] = tr.heading, tr.pitch, tr.roll
-    truth[:, 9] = r_n + tr.h
-    truth[:, 10] = (r_e + tr.h) * np.cos(tr.lat)
-    truth[:, 11] = tr.s
-    epoch_at = np.full(n, -1, dtype=np.int64)
+    truth, epoch_at = chunk_truth_table(chunk, earth)
     g = chunk.gnss
     if g is not None and len(chunk.gnss_step):
-        epoch_at[chunk.gnss_step] = np.arange(len(chunk.gnss_step))
-        n_valid_epoch = g.valid.sum(axis=1)
-        # latest epoch at or before each step (-1: none yet in this chunk)
-        latest = np.maximum.accumulate(np.where(epoch_at >= 0, epoch_at, -1))
-        have = latest >= 0
-        outage = np.where(have, chunk.receiver_outage[np.maximum(latest, 0)], held_outage)
-        n_valid = np.where(have, n_valid_epoch[np.maximum(latest, 0)], held_n_valid)
+        outage, n_valid = held_flags(epoch_at, chunk.receiver_outage, g.valid.sum(axis=1), held_outage, held_n_valid)
         last_outage, last_n_valid = bool(outage[-1]), int(n_valid[-1])
     else:
         outage = np.full(n, held_outage)

@@ -6,19 +6,14 @@ builds :class:`NavigationVectorEnv`. Sub-environment j is the single
 convention for vector resets): the same observations, rewards and scores, bit for bit.
 
 How it is fast
-    * One simulator is built; the other N - 1 are shallow copies sharing the immutable
-      parts (track, constellation, sensor models, truth generator); each has its own
-      random streams and sensor states, set by its ``reset``.
-    * All episodes of a scenario have the same length and time base, so the N episodes
-      run in lockstep: every ``chunk_steps`` steps each simulator generates a chunk and
-      the chunks are stacked into (steps, N, ...) arrays; GNSS epochs fall at the same
-      steps for all N.
-    * The truth generator's output (ideal IMU increments and the true state, a
-      deterministic function of the scenario and the time) is computed once per chunk
-      and served to all N simulators (:class:`SharedTruth`): only the sensor errors
-      differ between sub-environments.
-    * Each step serves views of the stacked arrays and computes the N rewards in one
-      vectorised expression.
+    * The N episodes are the members of one :class:`navsim.simulator.SimulatorBatch`:
+      all episodes of a scenario have the same length and time base and, with scripted
+      motion, the same truth, so they run in lockstep. The truth (ideal IMU increments
+      and the true state), the satellite geometry and the deterministic outage masks are
+      computed once per chunk of ``chunk_steps`` steps; the sensor errors of the N
+      members in one vectorised pass, each from its own random streams.
+    * Each step serves views of the chunk's (N, steps, ...) arrays and computes the N
+      rewards in one vectorised expression against the shared truth row.
 
 Limits
     Autoreset mode NEXT_STEP (Gymnasium's default); resets are of all sub-environments
@@ -30,7 +25,6 @@ Limits
 
 from __future__ import annotations
 
-import copy
 import math
 from typing import Any
 
@@ -43,63 +37,30 @@ from gymnasium.vector.utils import batch_space
 from navsim.errors import ConfigError
 from navsim.scenario import Scenario
 
-from .chunks import EpisodeTape, prepare_chunk
+from .chunks import EpisodeTape, chunk_truth_table, held_flags
 from .navigation import resolve_scenario, wrap_array
 from .spaces import ACTION_SCALE, action_space, observation_space
 
-__all__ = ["NavigationVectorEnv", "SharedTruth"]
-
-
-class SharedTruth:
-    """A truth generator shared by simulators stepping in lockstep.
-
-    ``samples(i0, n)`` of the wrapped :class:`navsim.truthgen.TruthGenerator` is a pure
-    function of the scenario and the sample range; the last result is kept and handed to
-    every simulator asking for the same range. ``_cache.clear()`` (what
-    :meth:`Simulator.reset` calls) clears the wrapped generator's block cache too.
-    """
-
-    class _Cache(dict):
-        def __init__(self, owner):
-            super().__init__()
-            self.owner = owner
-
-        def clear(self):
-            self.owner.inner._cache.clear()
-            self.owner._key = None
-            self.owner._value = None
-
-    def __init__(self, inner):
-        self.inner = inner
-        self._cache = SharedTruth._Cache(self)
-        self._key = None
-        self._value = None
-        self.hits = 0
-
-    def samples(self, i0: int, n: int):
-        key = (int(i0), int(n))
-        if key != self._key:
-            self._value = self.inner.samples(i0, n)
-            self._key = key
-        else:
-            self.hits += 1
-        return self._value
-
-    def __getattr__(self, name):
-        return getattr(self.inner, name)
+__all__ = ["NavigationVectorEnv"]
 
 
 def _default_chunk(num_envs: int) -> int:
-    """Steps per chunk: about 2^19 env-steps buffered (about 300 MB), within [100, 4000]."""
-    return int(min(4000, max(100, 2**19 // max(num_envs, 1))))
+    """Steps per chunk: about 2^18 env-steps buffered (about 100 MB), within [64, 4000]."""
+    return int(min(4000, max(64, 2**18 // max(num_envs, 1))))
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
 
 
 class NavigationVectorEnv(gym.vector.VectorEnv):
     """N navigation episodes of one scenario in one NumPy pass (see the module docstring).
 
     Parameters are those of :class:`~navsim.envs.navigation.NavigationEnv` plus
-    ``num_envs``; ``chunk_steps`` defaults to about 2^19 / N (memory bound), and
-    ``share_truth`` (default True) switches the shared truth generator.
+    ``num_envs``; ``chunk_steps`` defaults to about 2^18 / N (memory bound); ``threads``
+    (default 1) spreads the sensor-error pass over threads (the numbers do not change).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": 20}
@@ -107,12 +68,11 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, scenario: str | Scenario = "paper-2012", *, render_mode: str | None = None,
                  truth_in_info: bool = False, reward_weights=(1.0, 0.0, 0.0), reward_cap: float = 1e4,
                  score: bool = True, chunk_steps: int | None = None, physical_action: bool = False,
-                 share_truth: bool = True, max_episode_steps: int | None = None, **overrides: Any) -> None:
+                 max_episode_steps: int | None = None, threads: int = 1, **overrides: Any) -> None:
         from navsim.episode import make_context
-        from navsim.motion import ExternalMotion
-        from navsim.simulator import Simulator
+        from navsim.simulator import SimulatorBatch
 
-        if int(num_envs) != num_envs or num_envs < 1:
+        if isinstance(num_envs, bool) or int(num_envs) != num_envs or num_envs < 1:
             raise ConfigError("num_envs", "a positive integer", num_envs)
         if render_mode is not None:
             raise ConfigError("render_mode", "None for the native vector env (render a single env)", render_mode)
@@ -123,14 +83,12 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             raise ConfigError("reward_weights", "three non-negative finite weights (pos, vel, att)", reward_weights)
         if not (reward_cap > 0.0 and math.isfinite(reward_cap)):
             raise ConfigError("reward_cap", "a positive finite number", reward_cap)
+        if chunk_steps is not None and (int(chunk_steps) != chunk_steps or chunk_steps < 1):
+            raise ConfigError("chunk_steps", "a positive integer", chunk_steps)
         self.num_envs = int(num_envs)
         self.scenario = resolve_scenario(scenario, overrides)
-        base = Simulator(self.scenario)
-        if isinstance(base.profile, ExternalMotion):
-            raise ConfigError("motion.profile", "scripted motion for the native vector env", "external")
-        if share_truth:
-            base.truthgen = SharedTruth(base.truthgen)
-        self.sims = [base] + [copy.copy(base) for _ in range(self.num_envs - 1)]
+        self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads)
+        base = self.batch.members[0]
         self.context = make_context(base)
         self.prn = np.asarray(base.constellation.prn)
         self.truth_in_info = bool(truth_in_info)
@@ -138,8 +96,6 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.reward_cap = float(reward_cap)
         self.score = bool(score)
         self.chunk_steps = int(chunk_steps) if chunk_steps is not None else _default_chunk(self.num_envs)
-        if self.chunk_steps < 1:
-            raise ConfigError("chunk_steps", "a positive integer", chunk_steps)
         self.physical_action = bool(physical_action)
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()
         timing = self.scenario.timing
@@ -152,11 +108,22 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.render_mode = None
         self._config = {"scenario": self.scenario.name, "config_hash": self.scenario.config_hash(),
                         "scenario_toml": self.scenario.to_toml()}
+        n, k = self.num_envs, self.n_sats
+        self._no_gnss = {"gnss_valid": _frozen(np.zeros((n, k), dtype=np.int8)),
+                         "pseudorange_m": _frozen(np.zeros((n, k))), "pseudorange_rate_mps": _frozen(np.zeros((n, k))),
+                         "sat_pos_e": _frozen(np.zeros((n, 3 * k))), "sat_vel_e": _frozen(np.zeros((n, 3 * k)))}
+        self._ones = _frozen(np.ones(n, dtype=bool))
+        self._falses = _frozen(np.zeros(n, dtype=bool))
         self._k = -1
         self._autoreset = False
         self._rngs = None
         self.tapes: list[EpisodeTape] | None = None
         self.closed = False
+
+    @property
+    def sims(self) -> list:
+        """The N member simulators (:attr:`batch` ``.members``)."""
+        return self.batch.members
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
@@ -179,13 +146,13 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
     def _reset_all(self, seeds: list):
         # as NavigationEnv.reset: a missing seed is drawn from the sub-env's generator
         self.seeds = [int(s) if s is not None else int(rng.integers(0, 2**63 - 1)) for s, rng in zip(seeds, self._rngs)]
-        self.priors = [sim.reset(s).prior for sim, s in zip(self.sims, self.seeds)]
+        self.priors = [start.prior for start in self.batch.reset(self.seeds)]
         self._k = 0
         self._autoreset = False
         self.tapes = [EpisodeTape(self.n_steps) for _ in range(self.num_envs)] if self.score else None
-        self._held = [(False, 0)] * self.num_envs
-        self._load_chunk()
         n = self.num_envs
+        self._held = (np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64))
+        self._load_chunk()
         info = {"context": np.array([self.context] * n, dtype=object), "prior": np.array(self.priors, dtype=object),
                 "gnss_prn": np.tile(self.prn, (n, 1)), "seed": np.array(self.seeds),
                 "action_scale": np.tile(self.action_scale, (n, 1))}
@@ -198,34 +165,35 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         return self._obs(0), info
 
     def _load_chunk(self) -> None:
-        n_env, C = self.num_envs, self.chunk_steps
-        parts = []
-        for j, sim in enumerate(self.sims):
-            pc = prepare_chunk(sim.advance(C), sim.earth, self.n_sats, *self._held[j], rows=False,
-                               per_step_gnss=False)
-            self._held[j] = (pc.last_outage, pc.last_n_valid)
-            if self.tapes is not None:
-                self.tapes[j].add_chunk(pc)
-            parts.append(pc)
-        first = parts[0]
-        c = first.n
-
-        def stack(name):
-            return np.stack([getattr(p, name) for p in parts], axis=1)
-
-        self._t = np.repeat(first.t[:, None, :], n_env, axis=1)
-        self._dtheta_r, self._dv_r = stack("dtheta_r"), stack("dv_r")
-        self._dtheta_sub, self._dv_sub = stack("dtheta_sub"), stack("dv_sub")
-        self._truth = stack("truth")
-        self._new_epoch = stack("new_epoch")
-        self._outage = np.stack([np.asarray(p.receiver_outage, dtype=bool) for p in parts], axis=1)
-        self._n_valid = np.stack([np.asarray(p.n_valid, dtype=np.int64) for p in parts], axis=1)
-        self._ones = np.ones((c, n_env), dtype=bool)
-        self._epoch_at = first.epoch_at
-        if first.valid is not None:
-            self._valid = stack("valid")
-            self._pr, self._prr = stack("pseudorange_m"), stack("pseudorange_rate_mps")
-            self._sat_pos, self._sat_vel = stack("sat_pos_e"), stack("sat_vel_e")
+        n_env = self.num_envs
+        chunk = self.batch.advance(self.chunk_steps)
+        c = len(chunk)
+        if self.tapes is not None:
+            for j, tape in enumerate(self.tapes):
+                tape.add_chunk(chunk.member(j))
+        imu = chunk.imu
+        truth, epoch_at = chunk_truth_table(chunk, self.batch.members[0].earth)
+        self._truth = truth  # (c, 12) shared by the members
+        self._epoch_at = epoch_at.tolist()
+        # per step: (N, ...) views; the time and epoch flag are shared (stride-0 views)
+        self._t = np.broadcast_to(chunk.t[:, None, None], (c, n_env, 1))
+        self._new_epoch = np.broadcast_to((epoch_at >= 0).astype(np.int8)[:, None, None], (c, n_env, 1))
+        self._dtheta_r = _frozen(imu.dtheta_r.reshape(n_env, c, -1))
+        self._dv_r = _frozen(imu.dv_r.reshape(n_env, c, -1))
+        self._dtheta_sub = _frozen(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))
+        self._dv_sub = _frozen(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))
+        g = chunk.gnss
+        n_valid_epoch = g.valid.sum(axis=2) if g is not None else np.zeros((n_env, 0), dtype=np.int64)
+        outage, n_valid = held_flags(epoch_at, chunk.receiver_outage, n_valid_epoch, *self._held)
+        self._held = (outage[:, -1].copy(), n_valid[:, -1].copy())
+        self._outage = _frozen(outage.T)  # (c, N)
+        self._n_valid = _frozen(n_valid.T)
+        if g is not None and len(chunk.gnss_step):
+            k = len(chunk.gnss_step)
+            self._valid = _frozen(g.valid.astype(np.int8))  # (N, k, m)
+            self._pr, self._prr = _frozen(g.pseudorange_m), _frozen(g.pseudorange_rate_mps)
+            self._sat_pos = np.broadcast_to(g.sat_pos_e[0].reshape(k, 1, -1), (k, n_env, 3 * self.n_sats))
+            self._sat_vel = np.broadcast_to(g.sat_vel_e[0].reshape(k, 1, -1), (k, n_env, 3 * self.n_sats))
         self._c = c
         self._i = 0
         if self.tapes is not None:
@@ -233,23 +201,22 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
 
     def _obs(self, i: int) -> dict:
         j = self._epoch_at[i]
-        n, k = self.num_envs, self.n_sats
         if j < 0:
-            gnss = {"gnss_valid": np.zeros((n, k), dtype=np.int8), "pseudorange_m": np.zeros((n, k)),
-                    "pseudorange_rate_mps": np.zeros((n, k)), "sat_pos_e": np.zeros((n, 3 * k)),
-                    "sat_vel_e": np.zeros((n, 3 * k))}
+            gnss = self._no_gnss
         else:
-            gnss = {"gnss_valid": self._valid[j], "pseudorange_m": self._pr[j], "pseudorange_rate_mps": self._prr[j],
-                    "sat_pos_e": self._sat_pos[j], "sat_vel_e": self._sat_vel[j]}
-        return {"t": self._t[i], "dtheta_r": self._dtheta_r[i], "dv_r": self._dv_r[i], "dtheta_sub": self._dtheta_sub[i],
-                "dv_sub": self._dv_sub[i], "gnss_new_epoch": self._new_epoch[i], **gnss}
+            gnss = {"gnss_valid": self._valid[:, j], "pseudorange_m": self._pr[:, j],
+                    "pseudorange_rate_mps": self._prr[:, j], "sat_pos_e": self._sat_pos[j],
+                    "sat_vel_e": self._sat_vel[j]}
+        return {"t": self._t[i], "dtheta_r": self._dtheta_r[:, i], "dv_r": self._dv_r[:, i],
+                "dtheta_sub": self._dtheta_sub[:, i], "dv_sub": self._dv_sub[:, i], "gnss_new_epoch": self._new_epoch[i],
+                **gnss}
 
     def _step_info(self, i: int) -> dict:
-        info = {"receiver_outage": self._outage[i], "_receiver_outage": self._ones[i],
-                "gnss_n_valid": self._n_valid[i], "_gnss_n_valid": self._ones[i]}
+        info = {"receiver_outage": self._outage[i], "_receiver_outage": self._ones,
+                "gnss_n_valid": self._n_valid[i], "_gnss_n_valid": self._ones}
         if self.truth_in_info:
-            info["truth"] = self._truth[i, :, :9].copy()
-            info["_truth"] = self._ones[i]
+            info["truth"] = np.tile(self._truth[i, :9], (self.num_envs, 1))
+            info["_truth"] = self._ones
         return info
 
     # ------------------------------------------------------------------ step
@@ -265,20 +232,20 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         if a.shape != (n, 9):
             raise ConfigError("actions", f"an array of shape ({n}, 9)", a.shape)
         i = self._i
-        row = self._truth[i]
+        row = self._truth[i]  # the truth is the same for every member
         sc = self.action_scale
-        d_lon = a[:, 1] * sc[1] - row[:, 1]
+        d_lon = a[:, 1] * sc[1] - row[1]
         d_lon = wrap_array(d_lon)  # as the single env: the same rounding
-        de = d_lon * row[:, 10]
-        dn = (a[:, 0] * sc[0] - row[:, 0]) * row[:, 9]
-        du = a[:, 2] * sc[2] - row[:, 2]
+        de = d_lon * row[10]
+        dn = (a[:, 0] * sc[0] - row[0]) * row[9]
+        du = a[:, 2] * sc[2] - row[2]
         w_pos, w_vel, w_att = self.reward_weights
         e = w_pos * np.sqrt(de * de + dn * dn + du * du)
         if w_vel:
-            d = a[:, 3:6] * sc[3:6] - row[:, 3:6]
+            d = a[:, 3:6] * sc[3:6] - row[3:6]
             e = e + w_vel * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
         if w_att:
-            d = wrap_array(a[:, 6:9] * sc[6:9] - row[:, 6:9])
+            d = wrap_array(a[:, 6:9] * sc[6:9] - row[6:9])
             e = e + w_att * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
         reward = -np.where(e < self.reward_cap, e, self.reward_cap)
         if self.tapes is not None:
@@ -328,5 +295,6 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         return score_episode(record, track=self.sims[j].track)
 
     def close_extras(self, **kwargs) -> None:
-        self.sims = []
+        self.batch.close()
+        self.batch.members = []
         self.tapes = None

@@ -59,6 +59,12 @@ __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "Chunk
 STREAMS = ("motion", "imu", "gnss", "outages", "initial_error")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
 
+IMU_GROUP = 32
+"""Most members per call of the batched IMU error model in :class:`SimulatorBatch`."""
+
+IMU_TILE = 8192
+"""About this many member-samples per call of the batched IMU error model (cache size)."""
+
 
 # ============================================================================ outputs
 @dataclass(frozen=True, slots=True)
@@ -441,7 +447,46 @@ class Simulator:
         return start, list(self.chunks(chunk_steps))
 
 
-def _generate(sims: list[Simulator], n_steps: int) -> ChunkBatch:
+def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor) -> imu_mod.ImuOutput:
+    """The IMU errors of every member, in cache-sized tiles of members x samples.
+
+    Members are taken in groups of at most :data:`IMU_GROUP` and the samples in blocks
+    of about :data:`IMU_TILE` member-samples per call; the error model is chunk-invariant
+    (one draw block per call, the recursive state carried), so the tiling changes no
+    number. With an executor the groups run on threads (NumPy's generators and ufunc
+    loops release the GIL).
+    """
+    members, ns = len(sims), len(t_start)
+    model = sims[0].imu_model
+    group = min(members, IMU_GROUP)
+    span = max(64, IMU_TILE // group)
+    out = imu_mod.ImuOutput(np.empty((members, *dtheta_true.shape)), np.empty((members, *dv_true.shape)),
+                            np.empty((members, ns, 3)), np.empty((members, ns, 3)))
+
+    def run(g0: int) -> None:
+        part = sims[g0:g0 + group]
+        states, rngs = [sim.imu_state for sim in part], [sim.rngs["imu"] for sim in part]
+        for s0 in range(0, ns, span):
+            s = slice(s0, s0 + span)
+            tile, states = imu_mod.apply_imu_errors_batch(
+                t_start[s], h, dtheta_true[s], dv_true[s], omega_end[s], force_end[s], model, states, rngs)
+            rows = slice(g0, g0 + len(part))
+            out.dtheta_r[rows, s], out.dv_r[rows, s] = tile.dtheta_r, tile.dv_r
+            out.rate_b[rows, s], out.accel_b[rows, s] = tile.rate_b, tile.accel_b
+        for sim, state in zip(part, states):
+            sim.imu_state = state
+
+    starts = range(0, members, group)
+    if executor is not None and len(starts) > 1:
+        for future in [executor.submit(run, g0) for g0 in starts]:
+            future.result()
+    else:
+        for g0 in starts:
+            run(g0)
+    return out
+
+
+def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
     """Generate the next steps of simulators in lockstep on one scenario and truth.
 
     The truth, the satellite geometry and the deterministic outage masks are computed
@@ -475,11 +520,7 @@ def _generate(sims: list[Simulator], n_steps: int) -> ChunkBatch:
             return np.broadcast_to(a, (members, *a.shape))
         out = imu_mod.ImuOutput(shared(dtheta_true), shared(dv_true), shared(omega_end), shared(force_end))
     else:
-        out, imu_states = imu_mod.apply_imu_errors_batch(
-            t_start, h, dtheta_true, dv_true, omega_end, force_end, lead.imu_model,
-            [sim.imu_state for sim in sims], [sim.rngs["imu"] for sim in sims])
-        for sim, state in zip(sims, imu_states):
-            sim.imu_state = state
+        out = _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor)
     R = dtheta_true.shape[1]
     dtheta_sample = out.dtheta_r.reshape(members, n, m, R, 3)
     dv_sample = out.dv_r.reshape(members, n, m, R, 3)
@@ -550,6 +591,9 @@ class SimulatorBatch:
         Scripted motion only (external motion is pushed per episode).
     size : int
         Number of members B.
+    threads : int
+        Threads for the sensor-error pass (default 1). Each member's numbers are the
+        same whatever the number of threads.
 
     Examples
     --------
@@ -561,11 +605,19 @@ class SimulatorBatch:
     (3, 100, 4, 3)
     """
 
-    def __init__(self, scenario: Scenario, size: int):
+    def __init__(self, scenario: Scenario, size: int, threads: int = 1):
         import copy
 
         if isinstance(size, bool) or int(size) != size or size < 1:
             raise ConfigError("size", "a positive integer", size)
+        if isinstance(threads, bool) or int(threads) != threads or threads < 1:
+            raise ConfigError("threads", "a positive integer", threads)
+        self.threads = int(threads)
+        self._executor = None
+        if self.threads > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._executor = ThreadPoolExecutor(self.threads, thread_name_prefix="navsim-batch")
         base = Simulator(scenario)
         if isinstance(base.profile, ExternalMotion):
             raise ConfigError("motion.profile", "scripted motion for a simulator batch", "external")
@@ -596,7 +648,13 @@ class SimulatorBatch:
 
     def advance(self, n_steps: int = 1) -> ChunkBatch:
         """Generate the next ``n_steps`` steps of every member (fewer at the episode's end)."""
-        return _generate(self.members, n_steps)
+        return _generate(self.members, n_steps, self._executor)
+
+    def close(self) -> None:
+        """Stop the worker threads (if any); idempotent."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
 
 
 def _every(truth: TrueState, m: int) -> TrueState:

@@ -85,3 +85,24 @@ def test_bad_input():
     batch.advance(100)
     with pytest.raises(RuntimeError, match="over"):
         batch.advance(1)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_groups_and_threads_change_no_number(threads):
+    """More members than one IMU group (IMU_GROUP), optionally on two threads."""
+    from navsim.simulator import IMU_GROUP
+
+    scenario = load_scenario("paper-2012").with_overrides(
+        {"timing": {"duration_s": 1.5}, "imu": {"preset": "consumer-mems"}})
+    size = IMU_GROUP + 3
+    batch = SimulatorBatch(scenario, size, threads=threads)
+    batch.reset(list(range(100, 100 + size)))
+    chunk = batch.advance(150)
+    batch.close()
+    batch.close()
+    for j in (0, IMU_GROUP - 1, IMU_GROUP, size - 1):
+        single = Simulator(scenario)
+        single.reset(100 + j)
+        ref = chunk_arrays(single.advance(150))
+        mine = chunk_arrays(chunk.member(j))
+        assert not _equal(ref, mine), f"member {j} differs in {_equal(ref, mine)}"

@@ -811,8 +811,8 @@ def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDAr
     """
     n = drive.shape[1]
     if not (drive.any() or start.any()):
-        return np.zeros_like(drive)
-    out = np.empty_like(drive)
+        return np.zeros(drive.shape)
+    out = np.empty(drive.shape)  # C order: the reshaped views below must share its memory
     if n <= 16:  # a few samples (step-by-step use): the plain recursion, same arithmetic
         x = start.copy()
         for k in range(n):
@@ -823,7 +823,7 @@ def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDAr
 
     b = drive.shape[0]
     flat_drive = drive.reshape(b, n, -1)
-    flat_out = out.reshape(b, n, -1)
+    flat_out = out.reshape(b, n, -1)  # a view (out is C-contiguous)
     flat_start = start.reshape(b, -1)
     for c, p in enumerate(np.broadcast_to(phi, start.shape[1:]).ravel()):
         flat_out[:, :, c], _ = lfilter([1.0], [1.0, -p], flat_drive[:, :, c], axis=1, zi=p * flat_start[:, c, None])
@@ -982,7 +982,10 @@ def apply_imu_errors_batch(
     z = np.empty((members, n, 6 * (order + 2)))
     for j, rng in enumerate(rngs):
         rng.standard_normal(out=z[j])
-    z = z.reshape(members, n, 2, order + 2, 3)
+    # working layout (sensor, slot, member, sample, axis): every slot contiguous, so the
+    # elementwise passes below run over long contiguous arrays (the numbers are those
+    # of the draw order above)
+    zt = np.ascontiguousarray(z.reshape(members, n, 2, order + 2, 3).transpose(2, 3, 0, 1, 4))
     sensors = (model.gyro, model.accel)
     r = np.arange(1, order + 1)
     h_r_fact = h**r / np.array([math.factorial(int(k)) for k in r], dtype=float)  # h^r / r!
@@ -995,9 +998,10 @@ def apply_imu_errors_batch(
     sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
     tau = np.stack([s.bias_correlation_time_s for s in sensors])
     phi = np.exp(-h / tau)
-    gm_drive = (sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau)))[None, None] * z[:, :, :, order]
+    gm_coef = sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau))  # (2, 3)
+    gm_drive = (gm_coef[:, None, None] * zt[:, order]).transpose(1, 2, 0, 3)  # (B, n, 2, 3)
     rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
-    rrw_drive = rrw_gain[None, None] * z[:, :, :, order + 1]
+    rrw_drive = (rrw_gain[:, None, None] * zt[:, order + 1]).transpose(1, 2, 0, 3)
     gm_next = _first_order_recursion(phi, gm_drive, gm_start)  # b_1..b_n, (B, n, 2, 3)
     rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
     varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
@@ -1026,8 +1030,8 @@ def apply_imu_errors_batch(
         if s_idx == 0 and np.any(model.g_sensitivity):
             out = out + _mat3_apply(model.g_sensitivity, dv_r)
             rate = rate + _mat3_apply(model.g_sensitivity, f_b)
-        # from here on the members differ
-        out = np.repeat(out[None], members, axis=0)  # (B, n, R, 3)
+        # from here on the members differ; ``out`` in the layout (R, B, n, 3)
+        out = np.repeat(out.transpose(1, 0, 2)[:, None], members, axis=1)
         rate = np.repeat(rate[None], members, axis=0)  # (B, n, 3)
 
         # Biases: constant + turn-on + Gauss-Markov + rate random walk (members without
@@ -1036,7 +1040,7 @@ def apply_imu_errors_batch(
         if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
                 or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
             bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
-            out += bias[:, :, None, :] * h_r_fact[None, None, :, None]  # b h^r / r!
+            out += bias[None] * h_r_fact[:, None, None, None]  # b h^r / r!
             rate += bias
 
         # Vibration harmonics: closed-form multiple integrals (seed 000, section 6).
@@ -1044,19 +1048,19 @@ def apply_imu_errors_batch(
             integrals = harmonic_multiple_integrals(
                 1.0, harm.frequency_hz, harm.phase_rad, t_start, h, order
             )
-            out += integrals[:, :, None] * harm.amplitude[None, None, :]
+            out += integrals.T[:, None, :, None] * harm.amplitude[None, None, None, :]
             wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
             rate += wave[:, None] * harm.amplitude[None, :]
 
         # White noise: exact joint draw of the R integrals, Cov = q h^(i+j-1) / (...).
         if np.any(density[s_idx]):
-            z_white = z[:, :, s_idx, :order]  # (B, n, R, 3)
+            z_white = zt[s_idx]  # (R + 2, B, n, 3), slots 0..R-1 white
             for i in range(order):  # lower-triangular Cholesky factor times the draws
-                unit = noise_factor[i, 0] * z_white[:, :, 0]
+                unit = noise_factor[i, 0] * z_white[0]
                 for q in range(1, i + 1):
-                    unit += noise_factor[i, q] * z_white[:, :, q]
+                    unit += noise_factor[i, q] * z_white[q]
                 noise_i = unit * (noise_scale[i] * density[s_idx])
-                out[:, :, i] += noise_i
+                out[i] += noise_i
                 if i == 0:
                     rate += noise_i / h  # sample average: sigma = sqrt(PSD / h)
 
@@ -1064,18 +1068,20 @@ def apply_imu_errors_batch(
         # side as channels: the running sums are per column).
         if lsb_levels[s_idx, 0] > 0.0:
             width = 3 * (order + 1)
-            values = np.concatenate((out, rate[:, :, None]), axis=2).reshape(members, n, width)
+            values = np.concatenate((out, rate[None]), axis=0).transpose(2, 1, 0, 3)  # (n, B, R + 1, 3)
             q, acc, count = _quantize(
-                values.transpose(1, 0, 2).reshape(n, members * width),
+                values.reshape(n, members * width),
                 np.tile(np.repeat(lsb_levels[s_idx], 3), members),
                 acc_new[:, s_idx, rows].reshape(-1),
                 count_new[:, s_idx, rows].reshape(-1),
                 index,
             )
-            q = q.reshape(n, members, order + 1, 3).transpose(1, 0, 2, 3)
-            out, rate = q[:, :, :order], q[:, :, order]
+            q = q.reshape(n, members, order + 1, 3)
+            out, rate = q[:, :, :order].transpose(1, 0, 2, 3), q[:, :, order].transpose(1, 0, 2)
             acc_new[:, s_idx, rows] = acc.reshape(members, order + 1, 3)
             count_new[:, s_idx, rows] = count.reshape(members, order + 1, 3)
+        else:
+            out = out.transpose(1, 2, 0, 3)  # (B, n, R, 3)
         outputs.append((out, rate))
 
     new_states = [

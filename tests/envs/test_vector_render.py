@@ -10,7 +10,7 @@ gym = pytest.importorskip("gymnasium")
 import navsim.envs  # noqa: E402, F401  (registers the ids)
 from navsim.envs.render import HEIGHT, WIDTH  # noqa: E402
 from navsim.envs.spaces import solution_to_action  # noqa: E402
-from navsim.envs.vector import NavigationVectorEnv, SharedTruth  # noqa: E402
+from navsim.envs.vector import NavigationVectorEnv  # noqa: E402
 from navsim.errors import ConfigError  # noqa: E402
 
 OVER = {"timing": {"duration_s": 3.0}, "outages": {"windows_s": [[1.0, 2.0]]}}
@@ -58,23 +58,11 @@ def test_native_vector_equals_single_envs_over_two_episodes():
                 assert info_v["episode_score"][j].to_flat_dict() == info_s["episode_score"].to_flat_dict()
                 scores_seen += 1
     assert scores_seen == 2 * n
-    # the truth was generated once per chunk and shared
-    assert venv.unwrapped.sims[0].truthgen.hits > 0
+    # one truth generator for all members (the truth is generated once per chunk)
+    members = venv.unwrapped.batch.members
+    assert len(members) == n and all(sim.truthgen is members[0].truthgen for sim in members)
     venv.close()
     venv.close()
-
-
-def test_shared_truth_is_a_cache_of_the_same_function():
-    from navsim.scenario import load_scenario
-    from navsim.simulator import Simulator
-
-    sim = Simulator(load_scenario("urban-road").with_overrides({"timing": {"duration_s": 5.0}}))
-    shared = SharedTruth(sim.truthgen)
-    a = shared.samples(0, 120)
-    b = shared.samples(0, 120)
-    assert a is b and shared.hits == 1
-    direct = Simulator(load_scenario("urban-road").with_overrides({"timing": {"duration_s": 5.0}})).truthgen.samples(0, 120)
-    assert np.array_equal(a.dtheta_r, direct.dtheta_r) and np.array_equal(a.truth.lat, direct.truth.lat)
 
 
 def test_sync_and_async_modes():
