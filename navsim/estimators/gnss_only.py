@@ -75,6 +75,36 @@ def _estimate(t: float, row: np.ndarray, cov: np.ndarray, nis: float, dof: int, 
                     nis=float(nis) if has else None, nis_dof=int(dof) if has else None, extra=extra)
 
 
+def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndarray, predict, take_fix) -> EstimateBatch:
+    """The batch loop both GNSS-only estimators share.
+
+    The fixes of all epochs come from one vectorised :func:`gnss_fixes` call. Steps
+    between usable fixes are filled by ``predict(t, solution, covariance)`` (no state
+    change); at each usable fix ``take_fix(t, index, e, fixes, nis, nis_dof)`` changes
+    the state, then the fix's own step is filled by ``predict``.
+    """
+    n = len(batch)
+    solution = np.empty((n, 9))
+    covariance = np.empty((n, 9, 9))
+    nis = np.full(n, np.nan)
+    nis_dof = np.zeros(n, dtype=int)
+    epochs = list(batch.gnss)
+    fixes = gnss_fixes([o for _, o in epochs], min_satellites, initial_e)
+    t = np.asarray(batch.t, dtype=float)
+    start = 0
+    marks = [(index, e) for e, (index, _) in enumerate(epochs) if fixes[0][e]] + [(n, -1)]
+    for index, e in marks:
+        stop = min(index, n)
+        if stop > start:
+            predict(t[start:stop], solution[start:stop], covariance[start:stop])
+        if e < 0:
+            break
+        take_fix(float(t[index]), index, e, fixes, nis, nis_dof)
+        predict(t[index:index + 1], solution[index:index + 1], covariance[index:index + 1])
+        start = index + 1
+    return EstimateBatch(solution, covariance, nis, nis_dof)
+
+
 class GnssLeastSquares:
     """Per-epoch LS fix, extrapolated (or held) between epochs.
 
@@ -132,30 +162,16 @@ class GnssLeastSquares:
         """n steps at once (fixes of all epochs in one vectorised call)."""
         if self.context is None:
             raise ConfigError("GnssLeastSquares", "reset(context, prior) before stepping", "no reset")
-        n = len(batch)
-        solution = np.empty((n, 9))
-        covariance = np.empty((n, 9, 9))
-        epochs = list(batch.gnss)
-        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
-                                                                 self._initial_e)
-        t = np.asarray(batch.t, dtype=float)
-        start = 0
-        marks = [(index, e) for e, (index, _) in enumerate(epochs) if ok[e]] + [(n, -1)]
-        for index, e in marks:
-            stop = min(index, n)
-            if stop > start:
-                self._extrapolate(t[start:stop], solution[start:stop], covariance[start:stop])
-            if e < 0:
-                break
-            self._pos_e, self._vel_e, self._t = pos_e[e], vel_e[e], float(t[index])
-            self._n_valid = int(n_valid[e])
-            lat, lon, h = (float(x) for x in self.earth.ecef_to_geodetic(self._pos_e))
-            m = mat_en(lat, lon)
-            self._p_pos = self.sigma_pos**2 * (m @ cov_pos[e] @ m.T)
-            self._p_vel = self.sigma_vel**2 * (m @ cov_vel[e] @ m.T)
-            self._extrapolate(t[index:index + 1], solution[index:index + 1], covariance[index:index + 1])
-            start = index + 1
-        return EstimateBatch(solution, covariance, np.full(n, np.nan), np.zeros(n, dtype=int))
+        return _over_fixes(batch, self.min_satellites, self._initial_e, self._extrapolate, self._take_fix)
+
+    def _take_fix(self, t: float, index: int, e: int, fixes: tuple, nis: np.ndarray, nis_dof: np.ndarray) -> None:
+        _, pos_e, cov_pos, vel_e, cov_vel, n_valid = fixes
+        self._pos_e, self._vel_e, self._t = pos_e[e], vel_e[e], t
+        self._n_valid = int(n_valid[e])
+        lat, lon, h = (float(x) for x in self.earth.ecef_to_geodetic(self._pos_e))
+        m = mat_en(lat, lon)
+        self._p_pos = self.sigma_pos**2 * (m @ cov_pos[e] @ m.T)
+        self._p_vel = self.sigma_vel**2 * (m @ cov_vel[e] @ m.T)
 
     def _extrapolate(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
         tau = (t - self._t) if self.extrapolate else np.zeros_like(t)
@@ -243,43 +259,27 @@ class GnssConstantVelocity:
         """n steps at once: filterpy predict/update at epochs, closed-form prediction between."""
         if self.kf is None:
             raise ConfigError("GnssConstantVelocity", "reset(context, prior) before stepping", "no reset")
+        return _over_fixes(batch, self.min_satellites, self._initial_e, self._predicted, self._take_fix)
+
+    def _take_fix(self, t: float, index: int, e: int, fixes: tuple, nis: np.ndarray, nis_dof: np.ndarray) -> None:
+        _, pos_e, cov_pos, vel_e, cov_vel, n_valid = fixes
         kf = self.kf
-        n = len(batch)
-        solution = np.empty((n, 9))
-        covariance = np.empty((n, 9, 9))
-        nis = np.full(n, np.nan)
-        nis_dof = np.zeros(n, dtype=int)
-        epochs = list(batch.gnss)
-        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
-                                                                 self._initial_e)
-        t = np.asarray(batch.t, dtype=float)
-        start = 0
-        marks = [(index, e) for e, (index, _) in enumerate(epochs) if ok[e]] + [(n, -1)]
-        for index, e in marks:
-            stop = min(index, n)
-            if stop > start:
-                self._predicted(t[start:stop], solution[start:stop], covariance[start:stop])
-            if e < 0:
-                break
-            # predict to the epoch: x = F x, P = F P F^T + Q
-            kf.F, kf.Q = self._fq(float(t[index]) - self._t)
-            kf.predict()
-            self._t = float(t[index])
-            # update: z = [r_fix, v_fix], R from the fix geometry
-            z = np.concatenate([pos_e[e], vel_e[e]])[: kf.dim_z]
-            R = np.zeros((6, 6))
-            R[:3, :3] = self.sigma_pos**2 * cov_pos[e]
-            R[3:, 3:] = self.sigma_vel**2 * cov_vel[e]
-            R = R[: kf.dim_z, : kf.dim_z]
-            kf.update(z, R=0.5 * (R + R.T))
-            kf.P = 0.5 * (kf.P + kf.P.T)
-            y = np.asarray(kf.y, dtype=float).reshape(-1)
-            nis[index] = float(y @ np.linalg.solve(kf.S, y))
-            nis_dof[index] = kf.dim_z
-            self._n_valid = int(n_valid[e])
-            self._predicted(t[index:index + 1], solution[index:index + 1], covariance[index:index + 1])
-            start = index + 1
-        return EstimateBatch(solution, covariance, nis, nis_dof)
+        # predict to the epoch: x = F x, P = F P F^T + Q
+        kf.F, kf.Q = self._fq(t - self._t)
+        kf.predict()
+        self._t = t
+        # update: z = [r_fix, v_fix], R from the fix geometry
+        z = np.concatenate([pos_e[e], vel_e[e]])[: kf.dim_z]
+        R = np.zeros((6, 6))
+        R[:3, :3] = self.sigma_pos**2 * cov_pos[e]
+        R[3:, 3:] = self.sigma_vel**2 * cov_vel[e]
+        R = R[: kf.dim_z, : kf.dim_z]
+        kf.update(z, R=0.5 * (R + R.T))
+        kf.P = 0.5 * (kf.P + kf.P.T)
+        y = np.asarray(kf.y, dtype=float).reshape(-1)
+        nis[index] = float(y @ np.linalg.solve(kf.S, y))
+        nis_dof[index] = kf.dim_z
+        self._n_valid = int(n_valid[e])
 
     def _predicted(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
         """The prediction of the current filter state to times t (no state change)."""
