@@ -90,6 +90,11 @@ class ConstantSpeed:
     def end_time(self) -> float:
         return math.inf
 
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Times (s) where s(t) is not infinitely differentiable: none."""
+        return np.zeros(0)
+
 
 # Raised-cosine acceleration ramp R(x) (0 -> 1 over x in [0, 1]) and its integrals; the
 # jerk R'(x) = (pi/2) sin(pi x) vanishes at both ends, so acceleration is C^1.
@@ -213,6 +218,17 @@ class Timetable:
     def end_time(self) -> float:
         """Time of arrival at the last station plus its dwell, s."""
         return self._end_time
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Times (s, increasing, unique) where a ramp starts or ends.
+
+        The acceleration is C^1 there (the jerk of a raised-cosine ramp vanishes at both
+        ends) but its second derivative jumps; between two breakpoints s(t) is analytic and
+        non-decreasing (stops begin and end at breakpoints). Read-only: the fast truth
+        generator (:mod:`navsim.truthgen`) splits its interpolation intervals there.
+        """
+        return np.unique(np.concatenate([self._event_times, self._event_times + self.jerk_time]))
 
 
 class ExternalMotion:

@@ -488,6 +488,17 @@ class _ArcLengthTrack:
         dkappa_du = dg / rq - 0.5 * g * dq / (q * rq)
         return kappa, dkappa_du / sig
 
+    # -------------------------------------------------------------- smoothness
+    @property
+    def knot_s(self) -> np.ndarray:
+        """Arc lengths (m, increasing) strictly inside the track where the curve's pieces
+        join, so that some derivative of the geometry (and of the design cant) jumps.
+
+        Empty for a curve that is analytic over the whole track. Read-only: the fast truth
+        generator (:mod:`navsim.truthgen`) splits its interpolation intervals there.
+        """
+        return np.zeros(0)
+
     # -------------------------------------------------------------- helpers
     def _set_plan_scale(self, lat_ref: float, h_ref: float) -> None:
         r_n, r_e = self.earth.radii(np.array(lat_ref))
@@ -836,6 +847,12 @@ class PiecewisePolynomialTrack(_LatitudeTrack):
         return int(self._lam_pp.c.shape[0] - 1)
 
     @property
+    def knot_s(self) -> np.ndarray:
+        """Arc lengths (m) of the breakpoints strictly inside the track (C^(degree-1) joins)."""
+        inner = self.breakpoints[(self.breakpoints > min(self.phi_range)) & (self.breakpoints < max(self.phi_range))]
+        return np.sort(self._s_of_u(self.direction * (inner - self.phi_start)))
+
+    @property
     def n_pieces(self) -> int:
         inner = self.breakpoints[(self.breakpoints > min(self.phi_range)) & (self.breakpoints < max(self.phi_range))]
         return int(inner.size + 1)
@@ -948,6 +965,16 @@ class SplineTrack(_ArcLengthTrack):
                 y = y + np.array([self.lat_ref, self.lon_ref, 0.0])
             out.append(y)
         return out
+
+    @property
+    def knot_s(self) -> np.ndarray:
+        """Arc lengths (m) of the spline's distinct knots strictly inside the track: the
+        quintic pieces join C^4 there, so the design cant (which uses the third derivative
+        through the curvature rate) has a kink in its rate."""
+        u = self._u_breaks
+        t = np.unique(self._spline.t)
+        inner = t[(t > u[0]) & (t < u[-1])]
+        return self._s_of_u(inner)
 
     @property
     def waypoint_s(self) -> np.ndarray:
