@@ -7,9 +7,16 @@ Rows
 * ``navsim/PaperRail-v0`` through ``gym.make`` (constant action; an episode is 100 000
   steps) and unwrapped;
 * the native vector env (``vectorization_mode="vector_entry_point"``) at N = 64 and
-  N = 1024, and Gymnasium's ``SyncVectorEnv`` at N = 64 for comparison, in env-steps per
-  second. Timed windows always include simulator chunk generation (at least two chunk
-  rounds); ``score=False`` (no episode record: scoring costs memory, not step time).
+  N = 1024 (and at N = 1024 with ``threads=2``), and Gymnasium's ``SyncVectorEnv`` at
+  N = 64 for comparison, in env-steps per second. Timed windows always include
+  simulator chunk generation (at least two chunk rounds); ``score=False`` (no episode
+  record: scoring costs memory, not step time);
+* the floor of the sensor model: drawing, for N = 1024 members with their own
+  generators, only the standard normals one env-step needs (6 (R + 2) = 36 per IMU
+  sample, plus the GNSS and outage blocks of one epoch per ``steps_per_epoch`` steps),
+  with nothing else computed. No implementation that keeps each member's numbers
+  equal to its single env (its own PCG64 stream, the exact noise model) can step
+  faster than this on one core.
 
 Timing: alternating windows, the median of ``--rounds`` windows per row; the machine's
 load average is printed (the machine may be shared).
@@ -55,6 +62,25 @@ def _vector_rate(venv, steps: int) -> float:
     return steps * n / (time.perf_counter() - t0)
 
 
+def _draw_floor(n: int, steps: int) -> float:
+    """Env-steps/s of drawing only the normals and uniforms of the paper scenario's sensors."""
+    from navsim.scenario import load_scenario
+    from navsim.simulator import Simulator
+
+    sim = Simulator(load_scenario("paper-2012"))
+    timing, orders, m = sim.timing, sim.scenario.imu.orders, len(sim.constellation.prn)
+    rngs = [np.random.Generator(np.random.PCG64(j)) for j in range(n)]
+    imu = np.empty((n, steps * timing.samples_per_step, 6 * (orders + 2)))
+    epochs = max(1, steps // timing.steps_per_epoch)
+    gnss, outages = np.empty((n, epochs, 2 + 3 * m)), np.empty((n, epochs, 1 + m))
+    t0 = time.perf_counter()
+    for j, rng in enumerate(rngs):
+        rng.standard_normal(out=imu[j])
+        rng.standard_normal(out=gnss[j])
+        rng.random(out=outages[j])
+    return n * steps / (time.perf_counter() - t0)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rounds", type=int, default=3)
@@ -81,12 +107,14 @@ def main() -> None:
     single = statistics.median(rates["navsim/PaperRail-v0 (gym.make)"])
     cartpole = statistics.median(rates["CartPole-v1 (gym.make)"])
 
-    vector_rows = [("native vector env, N = 64", 64, "vector_entry_point"),
-                   ("SyncVectorEnv, N = 64", 64, "sync")]
+    vector_rows = [("native vector env, N = 64", 64, "vector_entry_point", 1),
+                   ("SyncVectorEnv, N = 64", 64, "sync", 1)]
     if not args.quick:
-        vector_rows.append(("native vector env, N = 1024", 1024, "vector_entry_point"))
-    for label, n, mode in vector_rows:
-        venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False)
+        vector_rows.append(("native vector env, N = 1024", 1024, "vector_entry_point", 1))
+        vector_rows.append(("native vector env, N = 1024, 2 threads", 1024, "vector_entry_point", 2))
+    for label, n, mode, threads in vector_rows:
+        extra = {"threads": threads} if mode == "vector_entry_point" else {}
+        venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False, **extra)
         venv.reset(seed=0)
         chunk = getattr(venv.unwrapped, "chunk_steps", 4000)
         steps = 2 * chunk + 10 if not args.quick else chunk + 10
@@ -94,6 +122,7 @@ def main() -> None:
             steps = min(steps, 3000)
         rates[label] = [_vector_rate(venv, steps) for _ in range(1 if n >= 1024 or mode == "sync" else rounds)]
         venv.close()
+    rates["floor: the draws alone, N = 1024"] = [_draw_floor(1024, 256) for _ in range(rounds)]
 
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; median of {rounds} window(s)")
     header = f"{'':38s} {'steps/s':>12s} {'x CartPole':>11s} {'x single env':>13s}"
