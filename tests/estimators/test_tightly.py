@@ -174,7 +174,8 @@ def test_slant_delays_match_the_simulator_model(earth):
     sat = _satellites(earth, lat, lon, h, 8, seed=11, min_elevation_deg=1.0)
     elevation, _, _ = elevation_azimuth(earth.geodetic_to_ecef(lat, lon, h)[None], sat[None], earth)
     kw = dict(shell_height_m=model.ionosphere_shell_height_m, scale_height_m=model.troposphere_scale_height_m)
-    iono, tropo = atmosphere_delays(lat, lon, h, sat, model.ionosphere_zenith_m, model.troposphere_zenith_m, earth, **kw)
+    iono, tropo = atmosphere_delays(lat, lon, h, sat, model.ionosphere_zenith_m, model.troposphere_zenith_m, earth,
+                                    **kw)
     assert np.allclose(iono, model.ionosphere_delay_m(elevation[0], earth), rtol=1e-10, atol=0)
     assert np.allclose(tropo, model.troposphere_delay_m(elevation[0], h), rtol=1e-10, atol=0)
     e = np.radians(np.linspace(0.0, 90.0, 19))
@@ -462,16 +463,18 @@ def test_nees_atmosphere_short(cls):
 
 
 def test_atmosphere_states_reduce_the_horizontal_error():
-    """Full standalone receiver (multipath too, not modelled beyond its sigma), 150 s,
-    2 seeds: horizontal RMS error with the atmospheric states well below that of the
-    filter blind to the atmosphere (measured 1000 s figures are in the module notes)."""
-    sc = _scenario(150.0, gnss={"preset": "standalone"})
+    """Full standalone receiver (multipath too, not modelled beyond its sigma), 100 s,
+    2 seeds: horizontal RMS error after 30 s with the atmospheric states well below that
+    of the filter blind to the atmosphere (measured 0.43 vs 1.26 m; 1000-s figures are in
+    the module notes)."""
+    sc = _scenario(100.0, gnss={"preset": "standalone"})
+    sim = Simulator(sc)
     rms = {}
     for atmosphere in ("none", "auto"):
-        err = [error_vector(run_episode(sc, TightlyCoupledEkf(atmosphere=atmosphere), seed=s))[3000:, :2]
+        err = [error_vector(run_episode(sc, TightlyCoupledEkf(atmosphere=atmosphere), seed=s, simulator=sim))[3000:, :2]
                for s in range(2)]
         rms[atmosphere] = float(np.sqrt(np.mean(np.square(err)) * 2))
-    assert rms["auto"] < 0.7 * rms["none"]
+    assert rms["auto"] < 0.6 * rms["none"]
 
 
 @pytest.mark.slow
