@@ -88,8 +88,8 @@ _VECTOR_GROUPS = (slice(0, 3), slice(3, 6), slice(6, 9))
 # smallest scale of each channel in the tail check (units of the channel): Earth rate for
 # omega_ib_b (rad/s), then m/s^2, m/s, m, m/s, m/s^2, rad, rad, m, rad, rad, rad
 _SCALE_FLOOR = np.array([7.292115e-5] * 3 + [1.0] * 15)
-_PLATEAU = 8  # coefficients inspected by the plateau test
-_PLATEAU_RATIO = 4.0  # max of the 6 before the last 2 at most this times the last 2
+_PLATEAU_RATIO = 4.0  # plateau: max of the window at most this times the last 2
+_SHORT_PLATEAU_TOL = 1e-12  # largest tail accepted on a plateau of the last 8 coefficients
 _RUNGS = (12, 16, 20, 24, 28)  # node counts tried on short runs (then cheb_nodes)
 _SNAP = 1e-9  # breakpoints this close (in samples) to a sample boundary are put on it
 _BISECTION_STEPS = 64
@@ -458,11 +458,16 @@ class TruthGenerator:
         tail = mag[:, -2:].max(axis=1)
         ok = tail <= self.tol * scale
         n = coef.shape[1]
-        if self.noise_tol > self.tol and n >= _PLATEAU + 2:
-            # a plateau at the evaluation noise: the coefficients before the last two are
-            # no larger than a few times the last two, and those are below noise_tol
-            envelope = mag[:, -_PLATEAU:-2].max(axis=1)
-            ok |= (tail <= self.noise_tol * scale) & (envelope <= _PLATEAU_RATIO * tail)
+        if self.noise_tol > self.tol and n >= 12:
+            # a plateau at the evaluation noise: the coefficients before the last two are no
+            # larger than a few times the last two. Over the last 8 coefficients a kink's
+            # algebraic tail (c_k ~ k^-p) looks flat too, so that short plateau is accepted
+            # only up to _SHORT_PLATEAU_TOL; up to noise_tol the whole upper half must be
+            # flat, which a kink's tail is not (it falls by 2^p >= 4 across it)
+            short = mag[:, -8:-2].max(axis=1) <= _PLATEAU_RATIO * tail
+            long = mag[:, n // 2:-2].max(axis=1) <= _PLATEAU_RATIO * tail
+            ok |= short & (tail <= min(_SHORT_PLATEAU_TOL, self.noise_tol) * scale)
+            ok |= long & (tail <= self.noise_tol * scale)
         return ok.all(axis=1)
 
     def _from_channels(self, ends: np.ndarray, integ: np.ndarray, t_end: np.ndarray,
