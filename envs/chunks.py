@@ -165,20 +165,28 @@ def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: in
 class EpisodeTape:
     """Truth, GNSS availability and the agent's actions of one episode, for scoring.
 
-    Truth is written per chunk into arrays preallocated for the whole episode; actions
+    Truth is written per chunk into arrays preallocated for the whole episode (or, with
+    ``truth_of``, shared with another tape of a lockstep episode, which writes it); actions
     arrive one per step as lists (appending a list is cheaper than a NumPy row write)
     and become one (n, 9) array at the end. ``covariance``, ``nis``: optional per-step
     extras an :class:`~navsim.envs.agent.EstimateAction` carries.
     """
 
-    def __init__(self, n_steps: int):
+    def __init__(self, n_steps: int, truth_of: EpisodeTape | None = None):
         self.n = n_steps
-        self.s = np.empty(n_steps)
-        self.lat = np.empty(n_steps)
-        self.lon = np.empty(n_steps)
-        self.h = np.empty(n_steps)
-        self.velocity_n = np.empty((n_steps, 3))
-        self.hpr = np.empty((n_steps, 3))
+        self.owns_truth = truth_of is None
+        if truth_of is None:
+            self.s = np.empty(n_steps)
+            self.lat = np.empty(n_steps)
+            self.lon = np.empty(n_steps)
+            self.h = np.empty(n_steps)
+            self.velocity_n = np.empty((n_steps, 3))
+            self.hpr = np.empty((n_steps, 3))
+        else:  # the same truth (lockstep episodes of one scenario): share its arrays
+            if truth_of.n != n_steps:
+                raise ValueError("EpisodeTape: truth_of has another episode length")
+            self.s, self.lat, self.lon, self.h = truth_of.s, truth_of.lat, truth_of.lon, truth_of.h
+            self.velocity_n, self.hpr = truth_of.velocity_n, truth_of.hpr
         self.actions: list = []
         self.cov: dict[int, np.ndarray] = {}
         self.nis: dict[int, tuple[float, int]] = {}
@@ -196,9 +204,10 @@ class EpisodeTape:
         chunk = getattr(prepared, "chunk", prepared)
         k = slice(chunk.step0, chunk.step0 + len(chunk))
         tr = chunk.truth
-        self.s[k], self.lat[k], self.lon[k], self.h[k] = tr.s, tr.lat, tr.lon, tr.h
-        self.velocity_n[k] = tr.velocity_n
-        self.hpr[k, 0], self.hpr[k, 1], self.hpr[k, 2] = tr.heading, tr.pitch, tr.roll
+        if self.owns_truth:
+            self.s[k], self.lat[k], self.lon[k], self.h[k] = tr.s, tr.lat, tr.lon, tr.h
+            self.velocity_n[k] = tr.velocity_n
+            self.hpr[k, 0], self.hpr[k, 1], self.hpr[k, 2] = tr.heading, tr.pitch, tr.roll
         g = chunk.gnss
         if g is not None:
             self.gnss_t.append(g.t)

@@ -20,7 +20,15 @@ Limits
     at once (a partial ``reset_mask`` is refused: the lockstep needs it). Scripted motion
     only (the driving task, with external motion, is not vectorised natively; use
     ``"sync"`` or ``"async"``). With ``score=True`` the actions of the whole episode are
-    kept for scoring: 72 bytes per step and sub-environment.
+    kept for scoring: 72 bytes per step and sub-environment (the truth record is shared);
+    a warning says so when that exceeds 2 GB (pass ``score=False`` for training).
+
+Where the time goes
+    Each member draws its own standard normals (36 per IMU sample of the paper scenario:
+    4 orders of white-noise integrals plus two bias drives, 2 sensors x 3 axes), exactly
+    as its single env does. On one core that draw alone bounds the rate; the vector env
+    runs at a large fraction of that bound (``benchmarks/bench_env.py`` prints both).
+    ``threads=2`` or more spreads the sensor-error pass over cores.
 """
 
 from __future__ import annotations
@@ -96,6 +104,11 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.reward_cap = float(reward_cap)
         self.score = bool(score)
         self.chunk_steps = int(chunk_steps) if chunk_steps is not None else _default_chunk(self.num_envs)
+        record_bytes = 72 * self.num_envs * self.scenario.timing.steps
+        if self.score and record_bytes > 2e9:
+            gym.logger.warn(f"NavigationVectorEnv: score=True keeps every action for the episode scores, "
+                            f"{record_bytes / 1e9:.1f} GB for {self.num_envs} envs x {self.scenario.timing.steps} "
+                            f"steps; pass score=False when the scores are not needed")
         self.physical_action = bool(physical_action)
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()
         timing = self.scenario.timing
@@ -149,7 +162,10 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.priors = [start.prior for start in self.batch.reset(self.seeds)]
         self._k = 0
         self._autoreset = False
-        self.tapes = [EpisodeTape(self.n_steps) for _ in range(self.num_envs)] if self.score else None
+        self.tapes = None
+        if self.score:  # one truth record shared by the members' tapes (the truth is the same)
+            first = EpisodeTape(self.n_steps)
+            self.tapes = [first] + [EpisodeTape(self.n_steps, truth_of=first) for _ in range(self.num_envs - 1)]
         n = self.num_envs
         self._held = (np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64))
         self._load_chunk()

@@ -134,3 +134,19 @@ def test_record_video(tmp_path):
     env.close()
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
+
+
+def test_large_score_record_warns_and_tapes_share_the_truth():
+    """300 envs x 100 000 steps x 72 B > 2 GB: a warning; score=False: none."""
+    import warnings
+
+    with pytest.warns(UserWarning, match="score=False"):
+        NavigationVectorEnv(300, "paper-2012")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        NavigationVectorEnv(300, "paper-2012", score=False)
+    venv = NavigationVectorEnv(3, "paper-2012", timing={"duration_s": 0.5})
+    venv.reset(seed=0)
+    first, second = venv.tapes[0], venv.tapes[1]
+    assert second.lat is first.lat and np.all(np.isfinite(first.lat[:10]))
+    venv.close()
