@@ -77,6 +77,7 @@ def make_context(sim: Simulator) -> Context:
         ionosphere_zenith_sigma_m=4.5 if iono else 0.0,
         troposphere_zenith_m=2.448 if tropo else 0.0,
         troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
+        lever_arm_b_m=tuple(float(x) for x in sim.scenario.gnss.lever_arm_m),  # surveyed at installation
     )
     timing = sim.timing
     return Context(

@@ -219,13 +219,39 @@ class GnssConfig:
     ``constellation``: ``"gps"``, ``"glonass"`` or ``"yuma:<file>"`` (relative to the
     scenario file). ``epoch_phase_deg`` rotates the constellation in time (changes the
     geometry). ``overrides``: fields of the preset's error model.
+
+    ``lever_arm_m``: position of the antenna phase centre relative to the IMU in body
+    axes (x right, y forward, z up), m; at most ``MAX_LEVER_ARM_M`` per component. The
+    measurements are made at the antenna (Groves 2013, section 14.2.3); the default
+    ``[0, 0, 0]`` puts the antenna at the IMU and changes no number.
     """
+
+    MAX_LEVER_ARM_M = 100.0
 
     enabled: bool = True
     constellation: str = "gps"
     preset: str = "paper-2012"
     epoch_phase_deg: float = 0.0
     overrides: dict = field(default_factory=dict)
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        arm = self.lever_arm_m
+        if isinstance(arm, (str, bytes)) or not hasattr(arm, "__len__") or len(arm) != 3:
+            raise ConfigError("gnss.lever_arm_m", "three numbers [x right, y forward, z up], m", arm)
+        values = []
+        for value in arm:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or abs(value) > self.MAX_LEVER_ARM_M:
+                raise ConfigError("gnss.lever_arm_m",
+                                  f"three finite numbers of at most {self.MAX_LEVER_ARM_M:g} m in magnitude", list(arm))
+            values.append(float(value))
+        object.__setattr__(self, "lever_arm_m", tuple(values))
+
+    @property
+    def has_lever_arm(self) -> bool:
+        """True when the antenna is not at the IMU."""
+        return any(v != 0.0 for v in self.lever_arm_m)
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,14 +320,27 @@ class Scenario:
         return Scenario.from_dict(_deep_merge(self.to_dict(), overrides), base_dir=self.base_dir)
 
     def config_hash(self) -> str:
-        """SHA-256 (16 hex digits) of the canonical JSON of :meth:`to_dict`."""
-        blob = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"), default=str)
+        """SHA-256 (16 hex digits) of the canonical JSON of :meth:`to_dict`.
+
+        Fields added after hashes were first published (:data:`_HASH_OMIT_IF_DEFAULT`)
+        are left out while they hold their default, so every earlier scenario keeps its
+        hash; any other value enters the hash.
+        """
+        data = self.to_dict()
+        for section, name, default in _HASH_OMIT_IF_DEFAULT:
+            if data.get(section, {}).get(name) == default:
+                data[section] = {k: v for k, v in data[section].items() if k != name}
+        blob = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
     def resolve_path(self, name: str) -> Path:
         """A file name from the scenario, relative to the scenario's folder."""
         path = Path(name)
         return path if path.is_absolute() or not self.base_dir else Path(self.base_dir) / path
+
+
+_HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]),)
+"""(section, field, default as in :meth:`Scenario.to_dict`) left out of the hash at the default."""
 
 
 # ============================================================================ loading

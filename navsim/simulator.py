@@ -37,7 +37,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .earth import earth_model
+from .earth import earth_model, mat_en
 from .errors import ConfigError
 from .motion import (
     ConstantSpeed,
@@ -551,9 +551,14 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
                                   for f in type(no).__slots__})
     elif lead.scenario.gnss.enabled:
         idx = epoch_steps
-        geometry = gnss_mod.sky_geometry(t_end_steps[idx], truth.position_e[idx], lead.constellation, lead.earth)
+        antenna_e, antenna_vel_e = truth.position_e[idx], truth.velocity_e[idx]
+        if lead.scenario.gnss.has_lever_arm:  # measured at the antenna, not at the IMU
+            mat_eb = np.swapaxes(mat_en(truth.lat[idx], truth.lon[idx]), -1, -2) @ truth.mat_nb[idx]
+            antenna_e, antenna_vel_e = gnss_mod.antenna_state(
+                antenna_e, antenna_vel_e, mat_eb, truth.omega_ib_b[idx], lead.scenario.gnss.lever_arm_m, lead.earth)
+        geometry = gnss_mod.sky_geometry(t_end_steps[idx], antenna_e, lead.constellation, lead.earth)
         gnss_epochs, gnss_states = gnss_mod.simulate_epochs_batch(
-            t_end_steps[idx], truth.position_e[idx], truth.velocity_e[idx], lead.constellation,
+            t_end_steps[idx], antenna_e, antenna_vel_e, lead.constellation,
             lead.gnss_model, [sim.gnss_state for sim in sims], [sim.rngs["gnss"] for sim in sims], lead.earth,
             geometry=geometry,
         )

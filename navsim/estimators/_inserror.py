@@ -123,6 +123,7 @@ __all__ = [
     "transition",
     "joseph_update",
     "correct_state",
+    "lever_arm_terms",
     "compensate_increments",
     "solution_rows",
     "state_from_prior",
@@ -316,6 +317,59 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _skew3(v) -> np.ndarray:
     x, y, z = v
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def lever_arm_terms(mat_nb, omega_ib_b, lever_arm_b, omega_ie_n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The antenna's offset from the INS in ENU, its velocity, and their error partials.
+
+    Parameters
+    ----------
+    mat_nb : array_like (3, 3)
+        Estimated body-to-ENU attitude C.
+    omega_ib_b : array_like (3,)
+        Estimated (bias-compensated) body rate, rad/s.
+    lever_arm_b : array_like (3,)
+        Antenna relative to the IMU in body axes, m.
+    omega_ie_n : array_like (3,)
+        Earth rate in ENU at the INS position, rad/s.
+
+    Returns
+    -------
+    arm_n : (3,) m
+        ``C l``: the antenna is at ``r + arm_n`` (ENU axes at the INS).
+    arm_velocity_n : (3,) m/s
+        ``C (omega_ib_b x l) - omega_ie_n x C l``: the antenna moves at ``v_n +
+        arm_velocity_n`` relative to the Earth (ENU components of the ECEF-frame
+        velocity; :func:`navsim.sensors.gnss.antenna_state`, (LA.1)-(LA.2)).
+    L : (6, 15)
+        ``[r_a; v_a](estimate) - [r_a; v_a](truth) = L x`` to first order in the error
+        state x of this module::
+
+            L_pos = [I, 0, -[arm_n x], 0, 0]                                  (LA.3)
+            L_vel = [0, I, -[a x] + [omega_ie x][arm_n x], -C [l x], 0],  a = C (omega x l)
+
+        from ``C_est = (I + [psi x]) C`` and ``omega_est = omega + eg``; the change of
+        omega_ie with the position error (~1e-11 m/s per metre) is left out.
+        tests/estimators/test_loosely.py checks L against finite differences through
+        :func:`correct_state`.
+    """
+    C = np.asarray(mat_nb, dtype=float)
+    lever = np.asarray(lever_arm_b, dtype=float)
+    w = np.asarray(omega_ib_b, dtype=float)
+    w_ie = np.asarray(omega_ie_n, dtype=float)
+    arm_n = C @ lever
+    turn_n = C @ np.array([w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2],
+                           w[0] * lever[1] - w[1] * lever[0]])  # C (omega x l)
+    skew_arm = _skew3(arm_n)
+    skew_ie = _skew3(w_ie)
+    arm_velocity_n = turn_n - skew_ie @ arm_n
+    L = np.zeros((6, N_STATES))
+    L[0:3, POS] = np.eye(3)
+    L[0:3, ATT] = -skew_arm  # (LA.3)
+    L[3:6, VEL] = np.eye(3)
+    L[3:6, ATT] = -_skew3(turn_n) + skew_ie @ skew_arm
+    L[3:6, BG] = -C @ _skew3(lever)
+    return arm_n, arm_velocity_n, L
 
 
 def noise_density(noise: ImuNoise) -> np.ndarray:

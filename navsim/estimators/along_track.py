@@ -67,6 +67,24 @@ fix, Newton on ``t_e . (r_fix - r_e(s)) = 0``), with variance ``t_e^T Sigma_fix 
 and, with ``use_doppler``, the velocity fix projected on the tangent. The clock is
 solved by the fix; the filter then has no clock states.
 
+Antenna lever arm (``context.gnss.lever_arm_b_m`` = l, body axes; option ``lever_arm``)
+-------------------------------------------------------------------------------------
+The measurements are the antenna's. On its track the body attitude is the track's
+(heading, grade, cant; body oscillations are not known to a gyro-free filter), so the
+antenna too is a function of s alone::
+
+    r_a(s) = r_e(s) + C_ne(s) C_nb(s) l                                     (AT.8)
+    dr_a/ds = t_e + C_ne ((rho_n + w_n) x C_nb l)                           (AT.9)
+
+(``rho_n`` the transport rate per metre, ``earth.transport_rate_n(lat, h, t_n)``,
+``w_n`` the track-frame rotation per metre below); the map table holds the offset and
+its derivative (cubic Hermite like the rest). Both updates then use the antenna's track:
+``r_e -> r_a``, ``t_e -> dr_a/ds``, ``dt_e/ds -> d^2 r_a/ds^2`` in the formulas above
+(the antenna velocity is ``v dr_a/ds``), and the "fix" mode projects ``r_fix - C_eb l``
+on the track and predicts the velocity fix along ``t_e`` as ``v t_e . dr_a/ds`` (AT.10).
+The offset from the body oscillations (3 m x 0.15 deg = 8 mm on mountain-railway) is
+left out.
+
 Output
 ------
 Position, tangent, heading, grade and cant come from the track at ``s``; velocity is
@@ -142,9 +160,13 @@ class TrackTable:
         turns (heading or grade) by more than ``MAX_TURN`` = 0.05 rad within one interval
         the spacing is reduced for the whole table (not below 0.25 m): a 15-m street
         corner gets ~0.7 m.
+    lever_arm_b : array_like (3,), optional
+        Antenna relative to the IMU in body axes, m. When given (non-zero), the table
+        also holds the antenna's ECEF offset ``C_eb(s) l`` (AT.8) with its s-derivative
+        (AT.9), columns :attr:`ANT`.
     """
 
-    def __init__(self, track, step_m: float = 5.0):
+    def __init__(self, track, step_m: float = 5.0, lever_arm_b=None):
         from ..track import track_frame
 
         self.length = float(track.length)
@@ -179,6 +201,18 @@ class TrackTable:
         self.values = np.column_stack([r_e - self.r_ref, pos, frame.tangent_n, heading, frame.pitch, frame.cant, g_t])
         self.derivs = np.column_stack([t_e, d1, frame.dtangent_n_ds, frame.dheading_ds, frame.dpitch_ds,
                                        frame.dcant_ds, dg_t])
+        lever = np.zeros(3) if lever_arm_b is None else np.asarray(lever_arm_b, dtype=float)
+        self.lever_arm_b = lever
+        self.has_antenna = bool(np.any(lever != 0.0))
+        if self.has_antenna:
+            # (AT.8) antenna offset C_ne C_nb l in ECEF on the track attitude (heading, grade, cant);
+            # (AT.9) d/ds = C_ne ((rho_n + w_n) x C_nb l), rho_n the transport rate per metre
+            arm_n = mat_nb @ lever
+            rho_n = earth.transport_rate_n(frame.lat, frame.h, frame.tangent_n)
+            arm_e = np.einsum("nij,ni->nj", c_en, arm_n)
+            darm_e = np.einsum("nij,ni->nj", c_en, np.cross(rho_n + self.w_n, arm_n))
+            self.values = np.column_stack([self.values, arm_e])
+            self.derivs = np.column_stack([self.derivs, darm_e])
         self._g = g_t.tolist()
         self._dg = (dg_t * self.step).tolist()
         self._inv = 1.0 / self.step
@@ -189,6 +223,7 @@ class TrackTable:
 
     # column blocks of values / derivs
     R_E, GEO, T_N, HEADING, PITCH, CANT, G_T = slice(0, 3), slice(3, 6), slice(6, 9), 9, 10, 11, 12
+    ANT = slice(13, 16)  # antenna offset in ECEF (only with a lever arm)
 
     def _index(self, s: np.ndarray):
         x = np.clip(np.asarray(s, dtype=float), 0.0, self.length) * self._inv
@@ -340,8 +375,11 @@ class AlongTrackOptions:
     divergence_epochs: int = 10
     pseudorange_sigma_m: float | None = None
     doppler_sigma_mps: float | None = None
+    lever_arm: str = "auto"
 
     def __post_init__(self):
+        if self.lever_arm not in ("auto", "none"):
+            raise ConfigError("along-track.lever_arm", "'auto' or 'none'", self.lever_arm)
         for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
@@ -402,6 +440,10 @@ class AlongTrackFilter:
     pseudorange_sigma_m, doppler_sigma_mps : float, optional
         Measurement sigmas assumed instead of the context's nominal ones (tuning, e.g.
         for unmodelled atmospheric delays). Floors: 1 mm and 0.1 mm/s.
+    lever_arm : {"auto", "none"}
+        "auto": the observables are the antenna's, at ``context.gnss.lever_arm_b_m`` from
+        the IMU on the track attitude (AT.8)-(AT.10); "none": the antenna is taken to be
+        at the IMU (uncompensated).
 
     The model, discretisation and measurement equations are in the module docstring.
     """
@@ -415,9 +457,11 @@ class AlongTrackFilter:
     def reset(self, context: Context, prior) -> None:
         """Build the map table (cached per track) and the initial state from the prior."""
         opt = self.options
-        key = (id(context.track), opt.table_step_m)
+        arm = getattr(context.gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if opt.lever_arm == "auto" else (0.0, 0.0, 0.0)
+        arm = tuple(float(x) for x in arm)
+        key = (id(context.track), opt.table_step_m, arm)
         if self.table is None or self._table_key != key:
-            self.table = TrackTable(context.track, opt.table_step_m)
+            self.table = TrackTable(context.track, opt.table_step_m, lever_arm_b=arm)
             self._table_key = key
         self.context = context
         table = self.table
@@ -523,6 +567,10 @@ class AlongTrackFilter:
         r = table.position_e(s)
         t_e = table.evaluate(s, table.R_E, 1)
         dt_e = table.evaluate(s, table.R_E, 2)
+        if table.has_antenna:  # (AT.10) the antenna's track: offset (AT.8) and its derivatives
+            r = r + table.evaluate(s, table.ANT)
+            t_e = t_e + table.evaluate(s, table.ANT, 1)
+            dt_e = dt_e + table.evaluate(s, table.ANT, 2)
         los = obs.sat_pos_e[use] - r
         rho = np.sqrt(np.einsum("mi,mi->m", los, los))
         u = los / rho[:, None]
@@ -572,7 +620,10 @@ class AlongTrackFilter:
             fix = least_squares_fix(obs.sat_pos_e, obs.pseudorange_m, use, initial=r_guess)
             if not fix.ok:
                 return None, 0
-            s_fix = table.project(fix.position_e, s0=s)
+            fix_imu = fix.position_e
+            if table.has_antenna:  # (AT.10) the fix is the antenna's: back to the track
+                fix_imu = fix_imu - table.evaluate(s, table.ANT)
+            s_fix = table.project(fix_imu, s0=s)
             t_e = table.evaluate(s_fix, table.R_E, 1)
             t_e = t_e / np.linalg.norm(t_e)
             H = [np.eye(self.n_x)[0]]
@@ -581,8 +632,11 @@ class AlongTrackFilter:
             if opt.use_doppler:
                 vfix = velocity_fix(obs.sat_pos_e, obs.sat_vel_e, obs.pseudorange_rate_mps, use, fix.position_e)
                 if vfix.ok:
-                    H.append(np.eye(self.n_x)[1])
-                    y.append(float(t_e @ vfix.velocity_e) - v)
+                    gain = 1.0  # d(t_e . v_antenna)/dv
+                    if table.has_antenna:
+                        gain = 1.0 + float(t_e @ table.evaluate(s, table.ANT, 1))
+                    H.append(np.eye(self.n_x)[1] * gain)
+                    y.append(float(t_e @ vfix.velocity_e) - gain * v)
                     R.append(float(t_e @ vfix.covariance[:3, :3] @ t_e) * self.sigma_rate**2)
             H, y, R = np.array(H), np.array(y), np.array(R)
         result = joseph_update(x, P, y, H, R)

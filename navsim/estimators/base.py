@@ -89,6 +89,10 @@ class NominalGnss:
     standard model, scaled by exp(-h / troposphere_scale_height_m) and mapped to slant
     with the RTCA DO-229 function. ionosphere_zenith_sigma_m, troposphere_zenith_sigma_m :
     1-sigma uncertainty of those a-priori zenith delays (0: the delay is absent).
+
+    lever_arm_b_m : (3,) tuple, m. Position of the antenna phase centre relative to the
+    IMU in body axes (x right, y forward, z up), as surveyed by the installer; the
+    measurements refer to the antenna. (0, 0, 0): antenna at the IMU.
     """
 
     pseudorange_sigma_m: float = 15.0
@@ -105,6 +109,7 @@ class NominalGnss:
     troposphere_zenith_m: float = 0.0
     troposphere_zenith_sigma_m: float = 0.0
     troposphere_scale_height_m: float = 8_000.0
+    lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)

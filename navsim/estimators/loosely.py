@@ -20,7 +20,21 @@ Measurements, at every GNSS epoch with at least ``min_satellites`` valid channel
 Both are treated as white and uncorrelated with each other; time-correlated errors of the
 standalone preset (multipath, ionosphere, troposphere) are not modelled, so the filter is
 consistent on white-noise GNSS (the "paper-2012" preset) and optimistic otherwise
-(``measurement_scale`` inflates R). The antenna is at the IMU (no lever arm).
+(``measurement_scale`` inflates R).
+
+Antenna lever arm (``context.gnss.lever_arm_b_m`` = l, body axes; option ``lever_arm``):
+the fixes refer to the antenna, so the predicted measurements are those of the antenna
+(:func:`navsim.estimators._inserror.lever_arm_terms`)::
+
+    y_pos = mat_en (r_ins_e - r_fix_e) + C l                                (LC.1)
+    y_vel = v_ins + C (omega x l) - omega_ie x C l - mat_en v_fix_e         (LC.2)
+
+with C the INS attitude and omega the bias-compensated body rate of the epoch's
+navigation step (its mean over the step: ``dtheta / dt - b_g``). The rows of H are those
+of ``L`` (LA.3): identity on position/velocity plus the attitude columns ``-[C l x]``
+(position) and ``-[C (omega x l) x] + [omega_ie x][C l x]`` (velocity) and the gyro-bias
+columns ``-C [l x]`` (velocity). With a zero lever arm (or ``lever_arm="none"``) the
+code is the one without these terms, number for number.
 
 Process noise: :meth:`ImuNoise.from_nominal` (ARW, VRW, Gauss-Markov biases with the
 nominal sigma and correlation time, rate random walk). Update in Joseph form, covariance
@@ -38,7 +52,8 @@ References
 ----------
 .. [1] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
        Systems, 2nd ed., 2013, sections 14.1-14.2 (INS/GNSS integration architectures,
-       closed-loop correction) and 14.2.6 (loosely coupled measurement model).
+       closed-loop correction), 14.2.3 (lever arm) and 14.2.6 (loosely coupled
+       measurement model).
 .. [2] Bar-Shalom Y., Li X.R., Kirubarajan T., Estimation with Applications to Tracking
        and Navigation, 2001, section 5.4 (NIS consistency test).
 """
@@ -52,7 +67,8 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..sensors.gnss import least_squares_fix, velocity_fix
-from ._inserror import NAV, N_STATES, ErrorStateIns, ImuNoise, nis_threshold
+from ..rotations import quat_to_mat
+from ._inserror import NAV, N_STATES, ErrorStateIns, ImuNoise, lever_arm_terms, nis_threshold
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = ["LooselyCoupledEkf", "gnss_fixes"]
@@ -108,6 +124,9 @@ class LooselyCoupledEkf:
         Consecutive failed NIS tests that raise the flag.
     coning, sculling, position : str or None
         Strapdown method names; None = the most accurate the data allow.
+    lever_arm : {"auto", "none"}
+        "auto": compensate the antenna lever arm of ``context.gnss.lever_arm_b_m``
+        (LC.1)-(LC.2); "none": take the antenna to be at the IMU (uncompensated).
 
     Attributes
     ----------
@@ -117,7 +136,7 @@ class LooselyCoupledEkf:
     def __init__(self, use_velocity: bool = True, min_satellites: int = 4, noise_scale: float = 1.0,
                  bias_scale: float = 1.0, measurement_scale: float = 1.0, covariance_period_s: float | None = None,
                  divergence_probability: float = 1e-6, divergence_epochs: int = 10, coning: str | None = None,
-                 sculling: str | None = None, position: str | None = None) -> None:
+                 sculling: str | None = None, position: str | None = None, lever_arm: str = "auto") -> None:
         if int(min_satellites) != min_satellites or min_satellites < 4:
             raise ConfigError("min_satellites", "an integer >= 4", min_satellites)
         if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
@@ -128,6 +147,9 @@ class LooselyCoupledEkf:
             raise ConfigError("divergence_probability", "a probability in (0, 1)", divergence_probability)
         if int(divergence_epochs) != divergence_epochs or divergence_epochs < 1:
             raise ConfigError("divergence_epochs", "a positive integer", divergence_epochs)
+        if lever_arm not in ("auto", "none"):
+            raise ConfigError("lever_arm", "'auto' or 'none'", lever_arm)
+        self.lever_arm = lever_arm
         self.use_velocity = bool(use_velocity)
         self.min_satellites = int(min_satellites)
         self.noise_scale, self.bias_scale = noise_scale, bias_scale
@@ -155,6 +177,9 @@ class LooselyCoupledEkf:
         self.diverged = False
         self.last_update = {}
         self._initial_e = context.earth.geodetic_to_ecef(prior.lat, prior.lon, prior.h)
+        arm = getattr(context.gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if self.lever_arm == "auto" else (0.0, 0.0, 0.0)
+        self.lever_arm_b = np.array(arm, dtype=float)
+        self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
 
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step (the batch path on a batch of one)."""
@@ -195,7 +220,9 @@ class LooselyCoupledEkf:
             if stop > start:
                 rows, cov = eng.advance_body(body, start, stop)
                 solution[start:stop], covariance[start:stop] = rows, cov
-            value, dof = self._update(pos_e[e], cov_pos[e], vel_e[e], cov_vel[e])
+            # mean compensated body rate over the epoch's step (for the lever-arm velocity)
+            omega_ib_b = body.dtheta1[index] / eng.dt - eng.gyro_bias if self._with_lever else None
+            value, dof = self._update(pos_e[e], cov_pos[e], vel_e[e], cov_vel[e], omega_ib_b)
             self.last_update = {"index": index, "n_valid": int(n_valid[e]), "nis": value}
             nis[index], nis_dof[index] = value, dof
             solution[index] = eng.current_row()
@@ -208,25 +235,34 @@ class LooselyCoupledEkf:
         return EstimateBatch(solution, covariance, nis, nis_dof)
 
     # ------------------------------------------------------------------------ update
-    def _update(self, pos_e, cov_pos, vel_e, cov_vel) -> tuple[float, int]:
+    def _update(self, pos_e, cov_pos, vel_e, cov_vel, omega_ib_b=None) -> tuple[float, int]:
         eng = self.engine
         st = eng.state
         earth = eng.earth
         m_en = mat_en(st.lat, st.lon)
         r_ins = earth.geodetic_to_ecef(st.lat, st.lon, st.h)
         y_pos = m_en @ (r_ins - pos_e)  # y = r_ins - r_fix = dr + v
+        if self._with_lever:  # (LC.1), (LC.2): the fix is the antenna's
+            arm_n, arm_vel_n, L = lever_arm_terms(quat_to_mat(st.quat_nb), omega_ib_b, self.lever_arm_b,
+                                                  earth.earth_rate_n(st.lat))
+            y_pos = y_pos + arm_n
         R_pos = self.sigma_pos**2 * (m_en @ cov_pos @ m_en.T)
         if self.use_velocity:
             y_vel = st.velocity_n - m_en @ vel_e  # y = v_ins - v_fix = dv + v
             R_vel = self.sigma_vel**2 * (m_en @ cov_vel @ m_en.T)
             H = np.zeros((6, N_STATES))
             H[:6, :6] = np.eye(6)
+            if self._with_lever:
+                y_vel = y_vel + arm_vel_n
+                H = L
             R = np.zeros((6, 6))
             R[:3, :3], R[3:, 3:] = R_pos, R_vel
             y = np.concatenate([y_pos, y_vel])
         else:
             H = np.zeros((3, N_STATES))
             H[:, :3] = np.eye(3)
+            if self._with_lever:
+                H = L[:3]
             R, y = R_pos, y_pos
         value, _ = eng.update(H, 0.5 * (R + R.T), y)
         if not math.isfinite(value) or value > self._nis_limit:

@@ -163,7 +163,8 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, correct_state, joseph_update
+from ..rotations import quat_to_mat
+from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, correct_state, joseph_update, lever_arm_terms
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = [
@@ -189,7 +190,8 @@ SIGMA_FLOOR_RATE_MPS = 1e-4
 
 
 # ============================================================================ observables
-def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_pos_e, sat_vel_e, earth):
+def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_pos_e, sat_vel_e, earth, *,
+                        arm_n=None, arm_velocity_n=None):
     """Pseudoranges (TC.2) and pseudorange rates (TC.3) of m satellites.
 
     Parameters
@@ -203,6 +205,10 @@ def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_po
     sat_pos_e, sat_vel_e : (m, 3)
         Satellite ECEF positions (m) and ECEF-frame velocities (m/s).
     earth : EarthModel
+    arm_n, arm_velocity_n : (3,) or (N, 3), optional
+        Antenna offset from the INS and its velocity in the ENU axes of the INS position
+        (:func:`navsim.estimators._inserror.lever_arm_terms`): the observables are then
+        the antenna's (TC.8).
 
     Returns
     -------
@@ -211,8 +217,28 @@ def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_po
     """
     r_e = earth.geodetic_to_ecef(lat, lon, h)
     c_en = mat_en(lat, lon)
+    if arm_n is not None:  # (TC.8) the antenna's position and velocity
+        r_e, velocity_n = _antenna(r_e, c_en, velocity_n, arm_n, arm_velocity_n)
     _, rho, rate = _ranges(r_e, c_en, velocity_n, sat_pos_e, sat_vel_e)
     return rho + np.asarray(clock_bias)[..., None], rate + np.asarray(clock_drift)[..., None]
+
+
+def _antenna(r_e, c_en, velocity_n, arm_n, arm_velocity_n):
+    """Antenna ECEF position and ENU velocity from the INS ones (TC.8)."""
+    arm_e = np.einsum("...ji,...j->...i", c_en, np.asarray(arm_n, dtype=float))  # C_en^T arm_n
+    return r_e + arm_e, np.asarray(velocity_n, dtype=float) + np.asarray(arm_velocity_n, dtype=float)
+
+
+def _rotate_back(psi, vec):
+    """exp(-[psi x]) vec, row-wise for (N, 3) arrays (Rodrigues)."""
+    theta2 = np.einsum("ni,ni->n", psi, psi)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-6
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    c1 = np.cross(psi, vec)
+    return vec - a[:, None] * c1 + b[:, None] * np.cross(psi, c1)
 
 
 def _ranges(r_e, c_en, velocity_n, sat_pos_e, sat_vel_e):
@@ -226,16 +252,22 @@ def _ranges(r_e, c_en, velocity_n, sat_pos_e, sat_vel_e):
 
 
 def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e, sat_vel_e, earth,
-                         n_states: int = 17) -> np.ndarray:
+                         n_states: int = 17, *, lever=None) -> np.ndarray:
     """d[rho; rate]/dx (2m, n_states) at the estimate: (TC.4), x = estimate error.
 
     Columns: position (metres along E, N, U), velocity, then zeros for attitude and
     biases, then clock bias and drift (when ``n_states == 17``).
+
+    ``lever``: ``(arm_n, arm_velocity_n, L)`` of
+    :func:`navsim.estimators._inserror.lever_arm_terms`; the observables are then the
+    antenna's (TC.8) and the attitude and gyro-bias columns are (TC.9).
     """
     r_n, r_e_rad = (float(x) for x in earth.radii(lat))
     r_e = earth.geodetic_to_ecef(lat, lon, h)
     c_en = mat_en(lat, lon)
     v_n = np.asarray(velocity_n, dtype=float)
+    if lever is not None:  # (TC.8) line of sight and relative velocity of the antenna
+        r_e, v_n = _antenna(r_e, c_en, v_n, lever[0], lever[1])
     v_e = c_en.T @ v_n
     los = sat_pos_e - r_e
     rho = np.sqrt(np.einsum("mi,mi->m", los, los))
@@ -257,6 +289,9 @@ def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e
         + v_n[2] * np.array([-cl * so, cl * co, 0.0])
     J[m:, 1] += -(u @ dv_dlat) / (r_n + h)
     J[m:, 0] += -(u @ dv_dlon) / ((r_e_rad + h) * cl)
+    if lever is not None:  # (TC.9) chain rule through the antenna position and velocity
+        L = lever[2]
+        J[:, :15] = J[:, 0:3] @ L[0:3] + J[:, 3:6] @ L[3:6]
     if n_states > CD:
         J[:m, CB] = 1.0
         J[m:, CD] = 1.0
@@ -606,8 +641,11 @@ class TightlyCoupledOptions:
     atmosphere: str = "auto"
     ionosphere_tau_s: float = 1800.0
     troposphere_tau_s: float = 3600.0
+    lever_arm: str = "auto"
 
     def __post_init__(self):
+        if self.lever_arm not in ("auto", "none"):
+            raise ConfigError("tightly.lever_arm", "'auto' or 'none'", self.lever_arm)
         if self.atmosphere not in ("auto", "none"):
             raise ConfigError("tightly.atmosphere", "'auto' or 'none'", self.atmosphere)
         for name in ("ionosphere_tau_s", "troposphere_tau_s"):
@@ -668,6 +706,10 @@ class _TightlyCoupled:
         sigma_rate = opt.doppler_sigma_mps if opt.doppler_sigma_mps is not None else gnss.doppler_sigma_mps
         self.sigma_pr = max(float(sigma_pr), SIGMA_FLOOR_PR_M)
         self.sigma_rate = max(float(sigma_rate), SIGMA_FLOOR_RATE_MPS)
+        arm = getattr(gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if opt.lever_arm == "auto" else (0.0, 0.0, 0.0)
+        self.lever_arm_b = np.array(arm, dtype=float)
+        self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
+        self._omega_ib_b = np.zeros(3)
         self.diverged = False
         self._bad = 0
         self.cholesky_fallbacks = 0
@@ -708,17 +750,32 @@ class _TightlyCoupled:
             self.diverged = True
         return nis, dof
 
-    def _predicted(self, sat_pos, sat_vel):
+    def _predicted(self, sat_pos, sat_vel, lever=None):
         st, eng = self.engine.state, self.engine
         cb, cd = (eng.clock if eng.with_clock else (0.0, 0.0))
+        if lever is not None:
+            return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth,
+                                       arm_n=lever[0], arm_velocity_n=lever[1])
         return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth)
 
+    def _lever_terms(self):
+        """(arm_n, arm_velocity_n, L) of the current INS state (TC.8), or None."""
+        if not self._with_lever:
+            return None
+        st = self.engine.state
+        return lever_arm_terms(quat_to_mat(st.quat_nb), self._omega_ib_b, self.lever_arm_b,
+                               self.earth.earth_rate_n(st.lat))
+
     def _with_atmosphere(self, lat, lon, h, velocity_n, cb, cd, iono_zenith, tropo_zenith, sat_pos, sat_vel,
-                         partials: bool = False):
+                         partials: bool = False, arm_n=None, arm_velocity_n=None):
         """(TC.2), (TC.3) plus the slant delays (TC.6) on one geometry (one ECEF position and
-        C_en per hypothesis); with ``partials`` (one position) also (TC.7), (m, 5)."""
+        C_en per hypothesis); with ``partials`` (one position) also (TC.7), (m, 5). With
+        ``arm_n`` the geometry is the antenna's (TC.8), its height ``h + arm_U``."""
         r_e = self.earth.geodetic_to_ecef(lat, lon, h)
         c_en = mat_en(lat, lon)
+        if arm_n is not None:  # (TC.8)
+            r_e, velocity_n = _antenna(r_e, c_en, velocity_n, arm_n, arm_velocity_n)
+            h = h + np.asarray(arm_n, dtype=float)[..., 2]
         los, rho, rate = _ranges(r_e, c_en, velocity_n, sat_pos, sat_vel)
         s = _sin_elevation(los, rho, c_en)
         k = self.earth.a / (self.earth.a + self._shell_height_m)
@@ -776,6 +833,8 @@ class _TightlyCoupled:
             sol[start:end + 1], cov[start:end + 1] = rows, c
             obs = obs_at.get(end)
             if obs is not None:
+                if self._with_lever:  # mean compensated body rate over the epoch's step (TC.8)
+                    self._omega_ib_b = body.dtheta1[end] / self.engine.dt - self.engine.gyro_bias
                 value, d = self._update(obs)
                 if value is not None:
                     nis[end], dof[end] = value, d
@@ -824,16 +883,21 @@ class TightlyCoupledEkf(_TightlyCoupled):
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
         st, eng = self.engine.state, self.engine
+        lever = self._lever_terms()
         J = observation_jacobian(st.lat, st.lon, st.h, st.velocity_n, sat_pos, sat_vel, self.earth,
-                                 eng.atm_index)
+                                 eng.atm_index, lever=lever)
         if not eng.with_atmosphere:
-            rho, rate = self._predicted(sat_pos, sat_vel)
+            rho, rate = self._predicted(sat_pos, sat_vel, lever)
         else:  # (TC.6) and (TC.7): position partials and the two zenith-delay columns
             cb, cd = (eng.clock if eng.with_clock else (0.0, 0.0))
+            arm = (None, None) if lever is None else lever[:2]
             rho, rate, J_atm = self._with_atmosphere(st.lat, st.lon, st.h, st.velocity_n, cb, cd, eng.atm[0],
-                                                     eng.atm[1], sat_pos, sat_vel, partials=True)
+                                                     eng.atm[1], sat_pos, sat_vel, partials=True,
+                                                     arm_n=arm[0], arm_velocity_n=arm[1])
             J = np.concatenate([J, np.zeros((2 * m, 2))], axis=1)
             J[:m, 0:3] += J_atm[:, 0:3]
+            if lever is not None:  # the delays move with the antenna: (TC.9) for their position partials
+                J[:m, 6:9] += J_atm[:, 0:3] @ lever[2][0:3, 6:9]
             J[:m, eng.atm_index:] = J_atm[:, 3:]
         if self.options.use_doppler:
             h = np.concatenate([rho, rate])
@@ -862,6 +926,11 @@ class TightlyCoupledUkf(_TightlyCoupled):
         clock = eng.clock if eng.with_clock else np.zeros(2)
         doppler = self.options.use_doppler
         cos_lat = math.cos(st.lat)
+        lever = self._with_lever
+        if lever:  # (TC.8) at each hypothesis: attitude exp(-[psi x]) C, rate omega - eg
+            C = quat_to_mat(st.quat_nb)
+            arm_est = C @ self.lever_arm_b
+            w, l = self._omega_ib_b, self.lever_arm_b
 
         def hx(X):
             # the truth hypothesis of each sigma point: INS minus the error
@@ -873,12 +942,22 @@ class TightlyCoupledUkf(_TightlyCoupled):
                 cb, cd = clock[0] - X[:, CB], clock[1] - X[:, CD]
             else:
                 cb = cd = np.zeros(len(X))
+            arm_n = arm_vel = None
+            if lever:
+                psi = X[:, 6:9]
+                arm_n = _rotate_back(psi, np.broadcast_to(arm_est, psi.shape))
+                w_true = w[None, :] - X[:, BG]
+                turn = np.cross(w_true, l[None, :]) @ C.T  # C (omega x l), rotated back below
+                w_ie = earth.earth_rate_n(lat)
+                arm_vel = _rotate_back(psi, turn) - np.cross(w_ie, arm_n)
             if eng.with_atmosphere:  # (TC.6) at each hypothesis' position and zenith delays
                 a = eng.atm_index
                 rho, rate = self._with_atmosphere(lat, lon, h, v, cb, cd, eng.atm[0] - X[:, a],
-                                                  eng.atm[1] - X[:, a + 1], sat_pos, sat_vel)
+                                                  eng.atm[1] - X[:, a + 1], sat_pos, sat_vel,
+                                                  arm_n=arm_n, arm_velocity_n=arm_vel)
             else:
-                rho, rate = predict_observables(lat, lon, h, v, cb, cd, sat_pos, sat_vel, earth)
+                rho, rate = predict_observables(lat, lon, h, v, cb, cd, sat_pos, sat_vel, earth, arm_n=arm_n,
+                                                arm_velocity_n=arm_vel)
             return np.concatenate([rho, rate], axis=1) if doppler else rho
 
         opt = self.options
