@@ -177,3 +177,32 @@ def test_chunk_invariance_across_blocks_and_knots(urban):
     mid = make().samples(333, 404)
     assert np.array_equal(mid.dtheta_r, whole.dtheta_r[333:737])
     assert np.array_equal(mid.truth.position_e, whole.truth.position_e[333:737])
+
+
+def test_mixed_blocks_and_breakpoints_on_sample_boundaries(mountain):
+    """Slow running over 10-30 m knots leaves some 1-s blocks without a knot (plain fits
+    between split ones, in one call); a timetable whose dwell ends on a sample boundary
+    inside a block splits runs there without a straddling sample."""
+    h, t_end = 0.005, 8.0
+    n = int(round(t_end / h))
+    cases = [ConstantSpeed(7.0, s0=2000.0),
+             Timetable((Station(2000.0, 1.5), Station(2400.0, 1.0)), cruise_speed=10.0, max_accel=1.0,
+                       max_decel=1.0, jerk_time=2.0)]
+    for profile in cases:
+        gen = TruthGenerator(mountain, profile, (), h, R, 4, t_end)
+        fast = gen.samples(0, n)
+        b = gen.block
+        ks = np.arange(n // b)
+        lo, hi = gen._inside(ks * b, (ks + 1) * b)
+        cut = hi > lo
+        ref = TruthGenerator(mountain, profile, (), h, R, 12, t_end, block_s=0.0)._direct(np.arange(n))
+        assert window_error(fast.dtheta_r, ref.dtheta_r) < 1e-12
+        assert window_error(fast.dv_r, ref.dv_r) < 1e-12
+        np.testing.assert_allclose(fast.truth.position_e, ref.truth.position_e, rtol=1e-14, atol=0)
+        if isinstance(profile, ConstantSpeed):
+            assert cut.any() and (~cut).any()  # both kinds of block in one call
+            assert fast.used_block.mean() > 0.95
+        else:
+            # the dwell ends at 1.5 s = sample 300 (inside block 1), the ramp at 3.5 s = 700
+            assert 300.0 in gen.breakpoints and 700.0 in gen.breakpoints
+            assert fast.used_block[290:310].all() and fast.used_block[690:710].all()
