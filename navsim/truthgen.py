@@ -29,21 +29,30 @@ profile breakpoints) and splits every block that contains one:
 
 * maximal *runs* of whole samples between breakpoints are fitted like blocks (a run of m
   samples uses its own cached matrices for (m, N)); N grows with the run's length
-  (about ``cheb_nodes * sqrt(m / block) + 2`` rounded up to a rung of 8, 12, 16, ...,
+  (about ``cheb_nodes * sqrt(m / block) + 2`` rounded up to a rung of 12, 16, 20, ...,
   ``cheb_nodes``) and climbs the rungs if the tail check fails; runs so short that
   N >= m (nodes + 1) use the direct method, which is then cheaper;
-* a sample that straddles a breakpoint is integrated piecewise (exact, above).
+* a sample that straddles a breakpoint is integrated piecewise (exact, above) with
+  ``max(nodes, R + 1)`` nodes per piece.
+
+Breakpoints within 1e-9 samples of a sample boundary are put on it (no straddling
+sample). The decomposition is a function of the absolute breakpoints and block index
+only, so the chunk invariance of the block method is kept.
 
 The fit is checked a posteriori on every block and run: with ``scale`` the sum of the
 magnitudes of a channel's Chebyshev coefficients (shared by the components of a vector,
 and at least a physical floor: Earth rate for the rates, 1 m/s^2, 1 m/s, 1 m and 1 rad for
 the others, so that a channel that happens to be near zero - a heading near north, the
 speed at a stop - is judged on the absolute rounding of the quantity, not on its own
-relative noise), the fit passes if the last two coefficients are below ``tol * scale``,
-or below ``noise_tol * scale`` while the last eight coefficients have stopped decaying
-(a plateau at the rounding noise of the truth evaluation itself: on the bundled urban
-road, at tight turns, the rates are computed to about 1e-13 relative, from the ulp of
-the arc length). A block or run that fails is computed with the direct method instead.
+relative noise), the fit passes if the last two coefficients are below ``tol * scale``
+(1e-13), or if they sit on a plateau - the rounding noise of the truth evaluation itself,
+which reaches 1e-12 of a rate in the urban road's turns and 1e-11 of the Earth-rate floor
+on its straights - namely below 1e-12 ``scale`` with the last 8 coefficients no larger
+than 4 times the last two, or below ``noise_tol * scale`` (1e-10) with the whole upper
+half that flat. A kink's algebraic tail (c_k ~ k^-p) is flat over 8 coefficients but
+falls by 2^p >= 4 over the upper half: with splitting switched off, 0.4 % of the blocks
+that contain a breakpoint pass (those where the kink is below 1e-12). A block or run
+that fails is computed with the direct method instead.
 So the choice is a deterministic function of the block, and the numbers do not depend
 on how the episode is chunked.
 
@@ -161,9 +170,10 @@ class TruthGenerator:
         Relative tolerance of the tail when the coefficients have reached a plateau (the
         rounding noise of the truth evaluation); ``noise_tol <= tol`` switches it off.
     split_at_breakpoints : bool
-        Find the motion's breakpoints and split blocks and samples there (default). False
-        gives the previous behaviour (blocks across a breakpoint usually fall back, and the
-        direct method integrates a straddling sample across its kink).
+        Find the motion's breakpoints and split blocks and samples there (default). False:
+        no splitting, as before this option existed (a block across a breakpoint fails the
+        tail check and falls back, and the direct method integrates a straddling sample
+        across its kink, first-order accurate there); for comparisons and benchmarks.
 
     Attributes
     ----------
