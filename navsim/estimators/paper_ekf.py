@@ -161,6 +161,7 @@ from __future__ import annotations
 import bisect
 import cmath
 import math
+import operator
 from dataclasses import dataclass
 from typing import Iterable
 
@@ -361,6 +362,21 @@ class TrackFunctions:
         hh = _horner2(self.h_c[i], x)
         return lam[0], lam[1], lam[2], hh[0], hh[1]
 
+    def scalars3(self, phi: float):
+        """(lam, lam', lam'', lam''', h, h', h'') at one real latitude: one order more than
+        :meth:`scalars`, for the analytic phi-derivatives of the covariance coefficients."""
+        i = self._piece(phi)
+        x = phi - self.breaks[i]
+        if self.order == 4:
+            a0, a1, a2, a3 = self.lam_c[i]
+            b0, b1, b2, b3 = self.h_c[i]
+            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
+                    6.0 * a3, b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x),
+                    2.0 * b2 + 6.0 * b3 * x)
+        lam = _horner3(self.lam_c[i], x)
+        hh = _horner3(self.h_c[i], x)
+        return lam[0], lam[1], lam[2], lam[3], hh[0], hh[1], hh[2]
+
     def arrays(self, phi: np.ndarray):
         """(lam, lam', lam'', h, h', h'') over an array of latitudes."""
         phi = np.asarray(phi, dtype=float)
@@ -393,6 +409,17 @@ def _quintic_hermite(p0, d0, dd0, p1, d1, dd1, width):
     c4 = (-15.0 * d + 7.0 * e * H - f * H * H) / H ** 4
     c5 = (6.0 * d - 3.0 * e * H + 0.5 * f * H * H) / H ** 5
     return np.column_stack([c0, c1, c2, c3, c4, c5])
+
+
+def _horner3(c, x):
+    """Value and first three derivatives of sum c_j x^j."""
+    p = d1 = d2 = d3 = 0.0
+    for cj in reversed(c):
+        d3 = d3 * x + 3.0 * d2
+        d2 = d2 * x + 2.0 * d1
+        d1 = d1 * x + p
+        p = p * x + cj
+    return p, d1, d2, d3
 
 
 def _horner2(c, x):
@@ -554,10 +581,13 @@ class PaperEkf:
         # --- stage functions
         self._stage = self._make_stage(math.sin, math.cos, math.sqrt, self.track_functions.scalars)
         self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, self.track_functions.scalars)
+        self._fused = self._make_fused()
+        self._riccati_layout()
         # --- initial state
         y0, p0 = self._state_from_prior(prior)
         self._Y = y0
         self._P = p0
+        self._P_rows = p0.tolist()
         self._K = None
         self._cov_left = 0
         self._P_start = p0.copy()
@@ -830,6 +860,275 @@ class PaperEkf:
                 Q[ig + j][ig + j] = 2.0 * imu.gyro_bias_sigma ** 2 / imu.gyro_bias_tau_s + imu.gyro_rrw ** 2
         return np.array(A), np.array(hneg), np.array(Q), np.array(s), sig2, real
 
+    def _make_fused(self):
+        """The fast form of :meth:`_coefficients` (same quantities, one scalar pass).
+
+        Returns ``fused(Y, w, f, t) -> (first, a_dyn, hneg, q_dyn, s4, sig2)``: ``first``
+        the stage values of :meth:`_make_stage` (the same expressions, so the same numbers),
+        ``a_dyn`` the state-dependent entries of A = dF/dY in the order of ``self._a_pos``,
+        ``hneg`` = d(Z_ax - H_a)/dY (n,), ``q_dyn`` the kinematic 3 x 3 block of Q (upper
+        triangle, row by row) and Q_VV, ``s4`` the V_Y entry of the correlation F1 D_A H_w^T
+        (its only non-zero entry), ``sig2`` = H_w D_a H_w^T. The stage values and their
+        angle and V_Y derivatives share the trigonometry; on the sphere the phi-derivatives
+        are analytic (chain rule through lambda(phi), h(phi), the radii and psi = lambda +
+        Omega t) instead of a second, complex-step evaluation of the stage; on the ellipsoid
+        the complex step is kept. :meth:`_coefficients` stays the reference (tests).
+        """
+        om = self._omega
+        two_om = 2.0 * om
+        om2 = om * om
+        sphere = self._sphere
+        a_e, e2 = self._a, self._e2
+        cent = self._cent
+        printed_kin = self._printed_kin
+        n = self.n_states
+        scal3 = self.track_functions.scalars3
+        scal = self.track_functions.scalars
+        stage_c = self._stage_c
+        kphi_c = self._kphi_c
+        sin, cos, sqrt = math.sin, math.cos, math.sqrt
+        biases, clock = self._biases, self._clock
+        ia, ig = self._i_ba, self._i_bg
+        zeros = [0.0] * n
+        obj = self
+
+        def fused(Y, w, f, t):
+            a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
+            wx, wy, wz = w
+            fx, fy, fz = f
+            if biases:
+                fx, fy, fz = fx - Y[ia], fy - Y[ia + 1], fz - Y[ia + 2]
+                wx, wy, wz = wx - Y[ig], wy - Y[ig + 1], wz - Y[ig + 2]
+            # ---- the stage (expressions as in _make_stage)
+            sa = sin(a)
+            ca = cos(a)
+            sb = sin(b)
+            cb = cos(b)
+            sg = sin(g)
+            cg = cos(g)
+            p = sg * wx + cg * wy
+            q = cg * wx - sg * wy
+            if printed_kin:
+                da, db, dg = p / cb, q, p * sb / cb + wz
+            else:
+                da, db, dg = q, p / ca, p * sa / ca + wz
+            d00 = sb * sa * sg + cb * cg
+            d01 = ca * sg
+            d02 = cb * sa * sg - sb * cg
+            d10 = sb * sa * cg - cb * sg
+            d11 = ca * cg
+            d12 = cb * sa * cg + sb * sg
+            d20 = sb * ca
+            d22 = cb * ca
+            fp0 = d00 * fx + d10 * fy + sb * ca * fz
+            fp1 = d01 * fx + d11 * fy - sa * fz
+            fp2 = d02 * fx + d12 * fy + cb * ca * fz
+            if sphere:
+                lam, dlam, ddlam, dddlam, hh, dh, ddh = scal3(phi)
+            else:
+                lam, dlam, ddlam, hh, dh = scal(phi)
+            sp = sin(phi)
+            cp = cos(phi)
+            psi = lam + om * t
+            ss = sin(psi)
+            cs = cos(psi)
+            if sphere:
+                rn = re = a_e + hh
+                k = dlam * cp
+                kphi = ddlam * cp - dlam * sp
+                gn = cent * om2 * rn * cp * sp
+            else:
+                w_ = 1.0 - e2 * sp * sp
+                r_e = a_e / sqrt(w_)
+                r_n = r_e * (1.0 - e2) / w_
+                rn = r_n + hh
+                re = r_e + hh
+                dre = r_e * e2 * sp * cp / w_ + dh
+                drn = 3.0 * r_n * e2 * sp * cp / w_ + dh
+                ratio = re / rn
+                k = dlam * cp * ratio
+                kphi = (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
+                gn = 0.0
+            m = dh / rn
+            kv = k * V
+            cor = two_om * sp + kv * sp / (cp * re)
+            acc_n = -cor * kv - m * V * V / rn + gn
+            acc_e = cor * V - (two_om * cp + kv / re) * m * V
+            gterm = k * acc_n + kphi * V * V / rn - acc_e
+            f_n = cp * fp1 - sp * (ss * fp0 + cs * fp2)
+            f_e = cs * fp0 - ss * fp2
+            w0s = d00 * (cs + k * sp * ss) - d01 * k * cp + d02 * (k * sp * cs - ss)
+            innov = (f_e - k * f_n - gterm) / w0s
+            first = (da, db, dg, V / rn, f_n + acc_n, innov)
+            # ---- Jacobian (as in _coefficients)
+            n_p0, n_p2 = -ss * sp, -cs * sp
+            u_p0, u_p1, u_p2 = cs - k * n_p0, -k * cp, -ss - k * n_p2
+            n_b0 = d00 * n_p0 + d01 * cp + d02 * n_p2
+            n_b1 = d10 * n_p0 + d11 * cp + d12 * n_p2
+            n_b2 = d20 * n_p0 - sa * cp + d22 * n_p2
+            w0 = d00 * u_p0 + d01 * u_p1 + d02 * u_p2
+            u_b1 = d10 * u_p0 + d11 * u_p1 + d12 * u_p2
+            u_b2 = d20 * u_p0 - sa * u_p1 + d22 * u_p2
+            y = innov * w0
+            hneg = list(zeros)
+            # f x n_b and f x u_b
+            zn0, zn1, zn2 = fy * n_b2 - fz * n_b1, fz * n_b0 - fx * n_b2, fx * n_b1 - fy * n_b0
+            zu0, zu1, zu2 = fy * u_b2 - fz * u_b1, fz * w0 - fx * u_b2, fx * u_b1 - fy * w0
+            ww = w0 * w0
+            # axes (cg, -sg, 0), (sg ca, cg ca, -sa), (0, 0, 1); dw0 = -(ax1 u_b2 - ax2 u_b1)
+            a40 = cg * zn0 - sg * zn1
+            hneg[0] = ((cg * zu0 - sg * zu1) * w0 - y * (sg * u_b2)) / ww
+            sgca, cgca = sg * ca, cg * ca
+            a41 = sgca * zn0 + cgca * zn1 - sa * zn2
+            hneg[1] = ((sgca * zu0 + cgca * zu1 - sa * zu2) * w0 - y * (-(cgca * u_b2 + sa * u_b1))) / ww
+            a42 = zn2
+            hneg[2] = (zu2 * w0 - y * u_b1) / ww
+            # kinematics rows
+            if printed_kin:
+                tb = sb / cb
+                kin_a = (p * sb / (cb * cb), q / cb, -p, p / (cb * cb), q * tb)
+                kin = ((sg / cb, cg / cb, 0.0), (cg, -sg, 0.0), (sg * tb, cg * tb, 1.0))
+            else:
+                ta = sa / ca
+                kin_a = (-p, p * sa / (ca * ca), q / ca, p / (ca * ca), q * ta)
+                kin = ((cg, -sg, 0.0), (sg / ca, cg / ca, 0.0), (sg * ta, cg * ta, 1.0))
+            # ---- phi derivatives
+            if sphere:
+                rn2 = rn * rn
+                a33 = -V * dh / rn2
+                kphi_p = dddlam * cp - 2.0 * ddlam * sp - dlam * cp
+                gn_p = cent * om2 * (dh * cp * sp + rn * (cp * cp - sp * sp))
+                m_p = ddh / rn - dh * dh / rn2
+                tphi = sp / (cp * rn)
+                tphi_p = 1.0 / (cp * cp * rn) - sp * dh / (cp * rn2)
+                cor_p = two_om * cp + V * (kphi * tphi + k * tphi_p)
+                acc_n_p = -V * (cor_p * k + cor * kphi) - V * V * (m_p / rn - m * dh / rn2) + gn_p
+                acc_e_p = cor_p * V - ((-two_om * sp + V * (kphi / rn - k * dh / rn2)) * m
+                                       + (two_om * cp + kv / rn) * m_p) * V
+                gterm_p = kphi * acc_n + k * acc_n_p + V * V * (kphi_p / rn - kphi * dh / rn2) - acc_e_p
+                xs = ss * fp0 + cs * fp2
+                f_n_p = -sp * fp1 - cp * xs - sp * dlam * f_e
+                f_e_p = -dlam * xs
+                w0s_p = (d00 * (-ss * dlam + kphi * sp * ss + k * cp * ss + k * sp * cs * dlam)
+                         - d01 * (kphi * cp - k * sp)
+                         + d02 * (kphi * sp * cs + k * cp * cs - k * sp * ss * dlam - cs * dlam))
+                a43 = f_n_p + acc_n_p
+                hneg[3] = (f_e_p - kphi * f_n - k * f_n_p - gterm_p - innov * w0s_p) / w0s
+            else:
+                cplx = stage_c(a, b, g, complex(phi, _CSTEP), V, t, wx, wy, wz, fx, fy, fz)
+                a33 = cplx[3].imag / _CSTEP
+                a43 = cplx[4].imag / _CSTEP
+                hneg[3] = cplx[5].imag / _CSTEP
+                kphi = float(kphi_c(phi))
+            # ---- V_Y derivatives
+            cor2 = two_om * sp + 2.0 * kv * sp / (cp * re)
+            acc_n_v = -cor2 * k - 2.0 * m * V / rn
+            acc_e_v = cor2 - (two_om * cp + 2.0 * kv / re) * m
+            hneg[4] = -(k * acc_n_v + 2.0 * kphi * V / rn - acc_e_v) / w0
+            a_dyn = [*kin_a, a33, 1.0 / rn, a40, a41, a42, a43, acc_n_v]
+            # ---- process noise, correlation, measurement intensity
+            qd, qa = obj._qd, obj._qa
+            k0, k1, k2 = kin
+            q_dyn = [qd * (k0[0] * k0[0] + k0[1] * k0[1] + k0[2] * k0[2]),
+                     qd * (k0[0] * k1[0] + k0[1] * k1[1] + k0[2] * k1[2]),
+                     qd * (k0[0] * k2[0] + k0[1] * k2[1] + k0[2] * k2[2]),
+                     qd * (k1[0] * k1[0] + k1[1] * k1[1] + k1[2] * k1[2]),
+                     qd * (k1[0] * k2[0] + k1[1] * k2[1] + k1[2] * k2[2]),
+                     qd * (k2[0] * k2[0] + k2[1] * k2[1] + k2[2] * k2[2]), qa]
+            s4 = qa * k / w0
+            sig2 = qa * (1.0 + k * k) / ww
+            if biases:
+                for j in range(3):
+                    a_dyn.extend((-k0[j], -k1[j], -k2[j]))
+                a_dyn.extend((-n_b0, -n_b1, -n_b2))
+                hneg[ia] = -w0 / w0
+                hneg[ia + 1] = -u_b1 / w0
+                hneg[ia + 2] = -u_b2 / w0
+            return first, a_dyn, hneg, q_dyn, s4, sig2
+
+        return fused
+
+    def _riccati_layout(self) -> None:
+        """Index maps of the Hamiltonian-like matrix H of :func:`_riccati_rk4_h` (set-up).
+
+        ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (2n x 2n) with ``g = h / sigma``, ``Abar = A -
+        s h^T / sigma^2``, ``Qbar = Q - s s^T / sigma^2``: then ``[R; I]^T H [R; I]`` is the
+        right-hand side ``A R + R A^T + Q - (R h + s)(R h + s)^T / sigma^2`` of (14)'s Riccati
+        equation (s has only its V_Y entry). Constant entries (clock, bias time constants and
+        PSDs) are written once; the state-dependent ones are written per coefficient update
+        through one flat index array.
+        """
+        n = self.n_states
+        kin_pos = ([(0, 1), (0, 2), (1, 2), (2, 1), (2, 2)] if self._printed_kin
+                   else [(0, 2), (1, 0), (1, 2), (2, 0), (2, 2)])
+        a_pos = kin_pos + [(3, 3), (3, 4), (4, 0), (4, 1), (4, 2), (4, 3), (4, 4)]
+        h_sup = [0, 1, 2, 3, 4]
+        H = np.zeros((2 * n, 2 * n))
+        if self._biases:
+            ia, ig = self._i_ba, self._i_bg
+            for j in range(3):
+                a_pos += [(0, ig + j), (1, ig + j), (2, ig + j)]
+            a_pos += [(4, ia), (4, ia + 1), (4, ia + 2)]
+            h_sup += [ia, ia + 1, ia + 2]
+            imu = self.context.imu
+            for j in range(3):
+                for i, tau_s in ((ia + j, imu.accel_bias_tau_s), (ig + j, imu.gyro_bias_tau_s)):
+                    H[n + i, i] = H[i, n + i] = -1.0 / tau_s
+                H[n + ia + j, n + ia + j] = 2.0 * imu.accel_bias_sigma ** 2 / imu.accel_bias_tau_s + imu.accel_rrw ** 2
+                H[n + ig + j, n + ig + j] = 2.0 * imu.gyro_bias_sigma ** 2 / imu.gyro_bias_tau_s + imu.gyro_rrw ** 2
+        if self._clock:
+            i = self._i_clk
+            H[n + i, i + 1] = H[i + 1, n + i] = 1.0
+            H[n + i, n + i] = self.context.gnss.clock_phase_psd
+            H[n + i + 1, n + i + 1] = self.context.gnss.clock_freq_psd
+        self._a_pos = a_pos
+        self._h_sup = h_sup
+        self._h_all = h_sup == list(range(n))
+        # row-4 entries of A that become Abar (index in a_dyn, column)
+        self._bar_fix = [(idx, j) for idx, (i, j) in enumerate(a_pos) if i == 4]
+        flat = []
+        flat += [i * 2 * n + j for i in h_sup for j in h_sup]  # -g g^T
+        flat += [(n + i) * 2 * n + j for i, j in a_pos]  # Abar
+        flat += [j * 2 * n + n + i for i, j in a_pos]  # Abar^T
+        q_pos = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+        flat += [(n + i) * 2 * n + n + j for i, j in q_pos] + [(n + j) * 2 * n + n + i for i, j in q_pos if i != j]
+        flat += [(n + 4) * 2 * n + n + 4]
+        self._h_flat_idx = np.array(flat)
+        self._H = H
+        self._Z = np.zeros((2 * n, n))
+        self._Z[n:] = np.eye(n)
+        m = np.zeros((4, n, n))
+        self._work = (self._Z, self._Z[:n], self._Z.T, np.zeros((2 * n, n)), m[0], m[1], m[2], m[3])
+
+    def _h_matrix(self, a_dyn, hneg, q_dyn, s4, sig2) -> np.ndarray:
+        """Fill H (see :meth:`_riccati_layout`) from the coefficients; returns the shared array.
+        ``a_dyn`` is modified (it becomes Abar)."""
+        inv = 1.0 / sig2
+        hs = hneg if self._h_all else [hneg[j] for j in self._h_sup]
+        nh = [-x * inv for x in hs]
+        si = s4 * inv
+        for idx, j in self._bar_fix:
+            a_dyn[idx] += si * hneg[j]
+        q0, q1, q2, q3, q4, q5, qvv = q_dyn
+        self._H.put(self._h_flat_idx, [x * y for x in nh for y in hs] + a_dyn + a_dyn
+                    + [q0, q1, q2, q3, q4, q5, q1, q2, q4, qvv - s4 * si])
+        return self._H
+
+    def _gain(self, hneg, s4, sig2):
+        """K = (R h + s) / sigma^2 (14) from the cached rows of R, and the rate |dH_a/dY K|."""
+        inv = 1.0 / sig2
+        dots = [sum(map(operator.mul, r, hneg)) for r in self._P_rows]
+        dots[4] -= s4
+        K = [-d * inv for d in dots]
+        return K, abs(sum(map(operator.mul, hneg, K)))
+
+    def _riccati(self, P, H, tau):
+        """RK4 of (14)'s Riccati equation with H frozen (:func:`_riccati_rk4_h`), checked."""
+        P = _riccati_rk4_h(P, H, tau, self._work)
+        rows = P.tolist()
+        _check_rows(rows)
+        return P, rows
+
     def _kphi_c(self, phi):
         """d k / d phi on the ellipsoid, by the same formula as in the stage function."""
         lam, dlam, ddlam, hh, dh = self.track_functions.scalars(phi)
@@ -905,79 +1204,92 @@ class PaperEkf:
         ns = self.n_states
         nan_row = [math.nan] * ns
         out_y = []
-        # per step: (P at the interval start, P at its end, fraction); interpolated after the loop
-        p_refs = []
+        # covariance output per step: P at the interval start and at its end (indices into
+        # mats, the distinct matrices of the batch) and the fraction; interpolated at the end
+        nan_p = np.full((ns, ns), np.nan)
+        mats = [nan_p]
+        index = {id(nan_p): 0}
+        ids0 = [0] * n
+        ids1 = [0] * n
+        frac = [0.0] * n
         nis = np.full(n, np.nan)
         dof = np.zeros(n, dtype=int)
         rows = inp.tolist()
         times = t_end.tolist()
         step_list = np.asarray(steps).tolist()
-        nan_p = np.full((ns, ns), np.nan)
+        one_step = self._one_step
+        isfinite = math.isfinite
+        last_p, last_k = None, 0
         for i in range(n):
             if self._diverged:
                 out_y.append(nan_row)
-                p_refs.append((nan_p, nan_p, 0.0))
                 continue
             try:
-                self._one_step(rows[i], times[i], step_list[i], dtheta_r[i], dv_r[i])
+                row = rows[i]
+                one_step(row, times[i], step_list[i], dtheta_r, dv_r, i)
                 obs = epochs.get(i)
                 if obs is not None:
                     self._cov_left = 0
-                    res = self._epoch_update(obs, rows[i][18:21], times[i])
+                    res = self._epoch_update(obs, row[18:21], times[i])
                     if res is not None:
                         nis[i], dof[i] = res
                 y = self._Y
-                if not math.isfinite(sum(y)):
+                if not isfinite(sum(y)):
                     raise FloatingPointError("non-finite state")
                 out_y.append(list(y))
-                if self._cov_left <= 0 or self._cov_len <= 1:
-                    p_refs.append((self._P, self._P, 0.0))
-                else:  # inside a covariance interval: linear in time between its ends
-                    p_refs.append((self._P_start, self._P, self._cov_pos / self._cov_len))
+                P = self._P
+                if P is not last_p:
+                    last_p = P
+                    last_k = index.get(id(P))
+                    if last_k is None:
+                        last_k = index[id(P)] = len(mats)
+                        mats.append(P)
+                ids0[i] = ids1[i] = last_k
+                if self._cov_left > 0 and self._cov_len > 1:  # inside a covariance interval: linear in time
+                    p0 = self._P_start
+                    k0 = index.get(id(p0))
+                    if k0 is None:
+                        k0 = index[id(p0)] = len(mats)
+                        mats.append(p0)
+                    ids0[i] = k0
+                    frac[i] = self._cov_pos / self._cov_len
             except (ArithmeticError, ValueError, np.linalg.LinAlgError):
                 self._diverged = True
                 out_y.append(nan_row)
-                p_refs.append((nan_p, nan_p, 0.0))
-        index: dict[int, int] = {}
-        mats = []
-        ids = np.empty((n, 2), dtype=int)
-        frac = np.empty(n)
-        for i, (p0, p1, f) in enumerate(p_refs):
-            for j, mat in enumerate((p0, p1)):
-                k = index.get(id(mat))
-                if k is None:
-                    k = index[id(mat)] = len(mats)
-                    mats.append(mat)
-                ids[i, j] = k
-            frac[i] = f
+                ids0[i] = ids1[i] = 0
+                frac[i] = 0.0
         stack = np.array(mats)
-        p_start = stack[ids[:, 0]]
-        out_p = p_start + frac[:, None, None] * (stack[ids[:, 1]] - p_start)
+        p_start = stack[ids0]
+        out_p = p_start + np.array(frac)[:, None, None] * (stack[ids1] - p_start)
         return np.array(out_y, dtype=float).reshape(n, ns), out_p, nis, dof
 
-    def _one_step(self, row, t1, step, dtheta_r, dv_r):
+    def _cov_coefficients(self, w, f, t):
+        """Coefficients at the current state for a covariance interval: (first stage
+        values, hneg, H filled, gain K (list), rate |dH_a/dY K|)."""
+        first, a_dyn, hneg, q_dyn, s4, sig2 = self._fused(self._Y, w, f, t)
+        H = self._h_matrix(a_dyn, hneg, q_dyn, s4, sig2)
+        K, rate = self._gain(hneg, s4, sig2)
+        return first, H, K, rate
+
+    def _one_step(self, row, t1, step, dtheta_r, dv_r, i):
         dt = self._dt
         t0 = t1 - dt
-        limit = self.config.stiffness_limit
         if self._cov_left <= 0:
-            w0 = row[0:3]
-            f0 = row[3:6]
-            A, hneg, Q, s, sig2, first = self._coefficients(self._Y, w0, f0, t0)
-            K = (self._P @ (-hneg) + s) / sig2
-            rate = abs(float(hneg @ K))
+            limit = self.config.stiffness_limit
+            coeffs = self._cov_coefficients(row[0:3], row[3:6], t0)
+            first, H, K, rate = coeffs
             to_epoch = self._spe - (step % self._spe)
             L = min(self._n_c, to_epoch)
             if rate * dt > limit:
-                self._substeps(t0, dtheta_r, dv_r, (A, hneg, Q, s, sig2, K, rate, first))
+                self._substeps(t0, dtheta_r[i], dv_r[i], coeffs)
                 self._cov_left = 0
                 self._cov_len = 1
                 return
             if rate * L * dt > limit:
                 L = max(1, int(limit / (rate * dt)))
             self._P_start = self._P
-            self._P = _riccati_rk4(self._P, A, hneg, Q, s, sig2, L * dt)
-            _check_covariance(self._P)
-            self._K = K.tolist()
+            self._P, self._P_rows = self._riccati(self._P, H, L * dt)
+            self._K = K
             self._cov_left = L
             self._cov_len = L
             self._cov_pos = 0
@@ -987,7 +1299,7 @@ class PaperEkf:
         self._cov_left -= 1
         self._cov_pos += 1
 
-    def _substeps(self, t0, dtheta_r, dv_r, first):
+    def _substeps(self, t0, dtheta_r, dv_r, coeffs):
         """Adaptive sub-steps inside one navigation step (start-up stiffness)."""
         dt = self._dt
         limit = self.config.stiffness_limit
@@ -999,23 +1311,17 @@ class PaperEkf:
             return (powers @ c).tolist()
 
         s_done = 0.0
-        coeffs = first
         while s_done < 1.0 - 1e-12:
             if coeffs is None:
-                A, hneg, Q, s, sig2, first = self._coefficients(self._Y, at(cw, s_done), at(cf, s_done),
-                                                                t0 + s_done * dt)
-                K = (self._P @ (-hneg) + s) / sig2
-                rate = abs(float(hneg @ K))
-            else:
-                A, hneg, Q, s, sig2, K, rate, first = coeffs
-                coeffs = None
+                coeffs = self._cov_coefficients(at(cw, s_done), at(cf, s_done), t0 + s_done * dt)
+            first, H, K, rate = coeffs
+            coeffs = None
             tau = min((1.0 - s_done) * dt, limit / max(rate, 1e-300))
             s_mid = s_done + 0.5 * tau / dt
             s_end = s_done + tau / dt
             row = at(cw, s_done) + at(cf, s_done) + at(cw, s_mid) + at(cf, s_mid) + at(cw, s_end) + at(cf, s_end)
-            self._P = _riccati_rk4(self._P, A, hneg, Q, s, sig2, tau)
-            _check_covariance(self._P)
-            self._K = K.tolist()
+            self._P, self._P_rows = self._riccati(self._P, H, tau)
+            self._K = K
             self._state_rk4(row, t0 + s_done * dt, tau, first)
             s_done = s_end
             self.substeps += 1
@@ -1090,8 +1396,8 @@ class PaperEkf:
         var = []
         if self._accel_in_update:
             wmean = [0.0, 0.0, 0.0]  # gyro values do not enter H_a or its Jacobian
-            _, hneg, _, _, sig2, first = self._coefficients(Y, wmean, f_mean, t)
-            rows.append(-hneg)
+            first, _, hneg, _, _, sig2 = self._fused(Y, wmean, f_mean, t)
+            rows.append([-x for x in hneg])
             resid.append(first[5])
             var.append(sig2 / self._dt)
         H = np.zeros((len(rows) + 2 * m, ns))
@@ -1122,7 +1428,8 @@ class PaperEkf:
         ikh = np.eye(ns) - Kt.T @ H
         P = ikh @ P @ ikh.T + (Kt.T * r_diag) @ Kt  # Joseph form
         self._P = 0.5 * (P + P.T)
-        _check_covariance(self._P)
+        self._P_rows = self._P.tolist()
+        _check_rows(self._P_rows)
         return float(nu @ np.linalg.solve(S, nu)), int(len(nu))
 
     def _ecef(self, phi) -> np.ndarray:
@@ -1267,6 +1574,49 @@ def _riccati_rk4(P, A, hneg, Q, s, sig2, tau):
     k2 += k2.T
     k2 *= 0.5
     return k2
+
+
+def _riccati_rk4_h(P, H, tau, work):
+    """RK4 of (14)'s Riccati equation written as R' = [R; I]^T H [R; I] (frozen H).
+
+    The same step as :func:`_riccati_rk4` (equal to rounding) in fewer and cheaper numpy
+    calls (each costs about a microsecond on these small matrices, more than its
+    arithmetic): two ``np.dot`` per stage into work arrays, H pre-scaled by tau/2 so that a
+    stage returns m_j = tau/2 k_j. ``work = (Z, top, Zt, HZ, m1, m2, m3, m4)`` from
+    :meth:`PaperEkf._riccati_layout`: Z (2n, n) with the identity in its lower half and the
+    stage's R written into its upper half ``top``, Zt its transpose (views made once).
+    Returns a new array.
+    """
+    Z, top, Zt, HZ, m1, m2, m3, m4 = work
+    dot, add = np.dot, np.add
+    Hh = H * (0.5 * tau)
+    np.copyto(top, P)
+    dot(Hh, Z, HZ)
+    dot(Zt, HZ, m1)
+    add(P, m1, top)
+    dot(Hh, Z, HZ)
+    dot(Zt, HZ, m2)
+    add(P, m2, top)
+    dot(Hh, Z, HZ)
+    dot(Zt, HZ, m3)
+    add(m3, m3, top)
+    add(top, P, top)
+    dot(Hh, Z, HZ)
+    dot(Zt, HZ, m4)
+    add(m2, m3, m2)
+    add(m2, m2, m2)
+    add(m2, m1, m2)
+    add(m2, m4, m2)  # tau/2 (k1 + 2 k2 + 2 k3 + k4)
+    out = add(m2, m2.T)
+    np.multiply(out, 1.0 / 6.0, out)
+    add(out, P, out)  # P + tau/6 (...), symmetrised
+    return out
+
+
+def _check_rows(rows) -> None:
+    """:func:`_check_covariance` on P.tolist() (the rows are needed for the gain anyway)."""
+    if not (math.isfinite(sum(map(sum, rows))) and min([r[i] for i, r in enumerate(rows)]) >= 0.0):
+        raise FloatingPointError("non-finite or indefinite covariance")
 
 
 def _check_covariance(P) -> None:
