@@ -122,7 +122,8 @@ _PLATEAU_RATIO = 4.0  # plateau: max of the window at most this times the last 2
 _SHORT_PLATEAU_TOL = 1e-12  # largest tail accepted on a plateau of the last 8 coefficients
 _RUNGS = (12, 16, 20, 24, 28)  # node counts tried on short runs (then cheb_nodes)
 _SNAP = 1e-9  # breakpoints this close (in samples) to a sample boundary are put on it
-_BISECTION_STEPS = 64
+_BISECTION_STEPS = 20  # knot crossing times: bisection steps, then
+_NEWTON_STEPS = 4  # safeguarded Newton steps
 _MATRIX_CACHE = 512
 
 
@@ -240,12 +241,24 @@ class TruthGenerator:
             target = knots[first[interval] + np.arange(interval.size) - offset]
             t_lo, t_hi = grid[interval], grid[interval + 1]
             sign_lo = np.sign(s[interval] - target)
-            for _ in range(_BISECTION_STEPS):  # s(t) = s_knot by bisection (deterministic)
-                t_mid = 0.5 * (t_lo + t_hi)
-                same = np.sign(self.profile.evaluate(t_mid)[0] - target) == sign_lo
+            # s(t) = s_knot: bisection to a bracket of span / 2^20, then Newton steps with
+            # ds/dt, each kept inside the bracket (else bisected); fixed step counts, so the
+            # result is deterministic
+            t_mid = 0.5 * (t_lo + t_hi)
+            for step in range(_BISECTION_STEPS + _NEWTON_STEPS):
+                s_mid, v_mid, _ = self.profile.evaluate(t_mid)
+                f = s_mid - target
+                same = np.sign(f) == sign_lo
                 t_lo = np.where(same, t_mid, t_lo)
                 t_hi = np.where(same, t_hi, t_mid)
-            times.append(0.5 * (t_lo + t_hi))
+                bisect = 0.5 * (t_lo + t_hi)
+                if step < _BISECTION_STEPS:
+                    t_mid = bisect
+                    continue
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    newton = t_mid - f / v_mid
+                t_mid = np.where((newton >= t_lo) & (newton <= t_hi), newton, bisect)
+            times.append(t_mid)
         t = np.unique(np.concatenate(times))
         t = t[(t > 0.0) & (t < t_lim)]
         beta = t / h
