@@ -98,6 +98,7 @@ References
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -124,7 +125,9 @@ _RUNGS = (12, 16, 20, 24, 28)  # node counts tried on short runs (then cheb_node
 _SNAP = 1e-9  # breakpoints this close (in samples) to a sample boundary are put on it
 _BISECTION_STEPS = 20  # knot crossing times: bisection steps, then
 _NEWTON_STEPS = 4  # safeguarded Newton steps
-_MATRIX_CACHE = 512
+_MATRIX_CACHE: OrderedDict = OrderedDict()  # run matrices, see _run_matrices
+_MATRIX_CACHE_BYTES = 64 * 2**20
+_matrix_cache_bytes = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -549,14 +552,19 @@ def _cheb_inverse(n: int) -> tuple[np.ndarray, np.ndarray]:
     return x, inv
 
 
-@lru_cache(maxsize=_MATRIX_CACHE)
 def _run_matrices(m: int, n: int, orders: int, h: float):
     """Matrices of a run of m samples of length h fitted with n Chebyshev nodes.
 
     Returns node offsets from the run start (s, (n,)), values -> coefficients (n, n),
     values -> values at the m sample ends (m, n) and values -> r-fold integrals over each
-    sample (m * orders, n); pure function of its arguments (cached, read-only arrays).
+    sample (m * orders, n); pure function of its arguments (cached, least recently used
+    first out beyond _MATRIX_CACHE_BYTES; read-only arrays).
     """
+    key = (m, n, orders, h)
+    hit = _MATRIX_CACHE.get(key)
+    if hit is not None:
+        _MATRIX_CACHE.move_to_end(key)
+        return hit
     R = orders
     span = m * h
     # Chebyshev nodes of the first kind on [0, span], in increasing time
@@ -576,7 +584,14 @@ def _run_matrices(m: int, n: int, orders: int, h: float):
     integ = (np.einsum("rq,bqk->brk", kernels, basis) @ coef_from_values).reshape(m * R, n)
     for a in (tau, end, integ):
         a.flags.writeable = False
-    return tau, coef_from_values, end, integ
+    out = (tau, coef_from_values, end, integ)
+    _MATRIX_CACHE[key] = out
+    global _matrix_cache_bytes
+    _matrix_cache_bytes += end.nbytes + integ.nbytes
+    while _matrix_cache_bytes > _MATRIX_CACHE_BYTES and len(_MATRIX_CACHE) > 1:
+        _, (_, _, old_end, old_integ) = _MATRIX_CACHE.popitem(last=False)
+        _matrix_cache_bytes -= old_end.nbytes + old_integ.nbytes
+    return out
 
 
 def _raw_channels(state: TrueState) -> np.ndarray:
