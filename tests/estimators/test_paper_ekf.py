@@ -220,6 +220,80 @@ def test_jacobians_on_wgs84_with_bias_and_clock_states():
         assert hneg[j] == pytest.approx(fd[5], rel=2e-5, abs=1e-9 * max(1.0, abs(fd[5])))
 
 
+# ---------------------------------------------------------------------------- fast path = reference
+def _wgs84_filter():
+    sc = _scenario(4.0, None, earth="wgs84", imu={"preset": "tactical"}, gnss={"preset": "standalone"})
+    sim = Simulator(sc)
+    est = PaperEkf(mode="extended")
+    est.reset(make_context(sim), sim.reset(0).prior)
+    return est
+
+
+def _random_full_state(est):
+    y = _random_state(est)
+    if est._biases:
+        y[est._i_ba:est._i_ba + 3] = RNG.normal(size=3) * 1e-2
+        y[est._i_bg:est._i_bg + 3] = RNG.normal(size=3) * 1e-4
+    if est._clock:
+        y[est._i_clk:est._i_clk + 2] = RNG.normal(size=2) * 100.0
+    return y
+
+
+@pytest.mark.parametrize("options", [{}, {"as_printed": True}, {"mode": "extended"}, "wgs84"])
+def test_fused_coefficients_equal_the_complex_step_reference(paper_sim, options):
+    """The one-pass coefficients (analytic phi-derivatives on the sphere) equal _coefficients
+    (complex step in phi) to rounding, and their stage values are the stage function's."""
+    est = _wgs84_filter() if options == "wgs84" else _filter(paper_sim, **options)
+    n = est.n_states
+    for _ in range(4):
+        y = _random_full_state(est)
+        w, f, t = RNG.normal(size=3) * 1e-2, np.array([0.3, -0.2, 9.8]) + RNG.normal(size=3) * 0.3, 77.0
+        A, hneg, Q, s, sig2, first = est._coefficients(y, w, f, t)
+        first_f, a_dyn, hneg_f, q_dyn, s4, sig2_f = est._fused(y, list(w), list(f), t)
+        assert first_f == first  # the same expressions: bitwise
+        rows, cols = np.array(est._a_pos).T
+        scale = np.abs(A).max(axis=1)[rows]
+        np.testing.assert_allclose(np.array(a_dyn) / scale, A[rows, cols] / scale, rtol=0, atol=1e-12)
+        # every entry of A that is not in a_dyn is a constant of the layout, written in H once
+        rest = A.copy()
+        rest[rows, cols] = 0.0
+        np.testing.assert_array_equal(rest, est._H[n:, :n])
+        np.testing.assert_allclose(hneg_f, hneg, rtol=1e-12, atol=1e-12 * np.abs(hneg).max())
+        iu = np.triu_indices(3)
+        np.testing.assert_allclose(q_dyn, list(Q[:3, :3][iu]) + [Q[4, 4]], rtol=1e-14)
+        assert s4 == pytest.approx(s[4], rel=1e-14) and np.count_nonzero(s) == 1
+        assert sig2_f == pytest.approx(sig2, rel=1e-14)
+
+
+@pytest.mark.parametrize("which", ["faithful", "wgs84"])
+def test_riccati_as_quadratic_form_equals_the_direct_rk4(paper_sim, which):
+    """[R; I]^T H [R; I] = A R + R A^T + Q - (R h + S)(R h + S)^T / sigma^2, and the RK4 steps agree."""
+    from navsim.estimators.paper_ekf import _riccati_rk4
+
+    est = _wgs84_filter() if which == "wgs84" else _filter(paper_sim)
+    n = est.n_states
+    y = _random_full_state(est)
+    w, f = RNG.normal(size=3) * 1e-2, np.array([0.3, -0.2, 9.8])
+    A, hneg, Q, s, sig2, _ = est._coefficients(y, w, f, 5.0)
+    _, a_dyn, hneg_f, q_dyn, s4, sig2_f = est._fused(y, list(w), list(f), 5.0)
+    H = est._h_matrix(a_dyn, hneg_f, q_dyn, s4, sig2_f)
+    m = RNG.normal(size=(n, n))
+    d = np.sqrt(np.diag(est._P))
+    R = d[:, None] * (m @ m.T / n + np.eye(n)) * d  # the prior's scales, random correlations
+    R = 0.5 * (R + R.T)  # exactly symmetric, as the filter's covariance always is
+    Z = np.vstack([R, np.eye(n)])
+    M = R @ -hneg + s
+    direct = A @ R + R @ A.T + Q - np.outer(M, M) / sig2
+    np.testing.assert_allclose(Z.T @ H @ Z, direct, rtol=0, atol=1e-12 * np.abs(direct).max())
+    rate = abs(hneg @ M) / sig2  # the gain rate: RK4 steps within the stiffness limit
+    for tau in (0.1 / rate, 0.5 / rate):
+        got = est._riccati(R, H, tau)[0]
+        ref = _riccati_rk4(R, A, hneg, Q, s, sig2, tau)
+        sd = np.sqrt(np.diag(ref))
+        assert np.all(np.abs(got - ref) <= 1e-11 * np.outer(sd, sd))  # relative to each entry's scale
+        np.testing.assert_array_equal(got, got.T)
+
+
 def test_gnss_observation_jacobians_against_finite_differences(paper_sim):
     est = _filter(paper_sim)
     sim, start, _ = paper_sim
@@ -319,13 +393,14 @@ def _run_states(sim, seed, **options):
     return est, e, p, nees, nis[dof > 0], dof[dof > 0]
 
 
-def test_step_equals_step_batch():
+@pytest.mark.parametrize("cov_step_s", [None, 0.1])
+def test_step_equals_step_batch(cov_step_s):
     sim = Simulator(_scenario(6.0, (2.0, 4.0)))
     start = sim.reset(3)
     ctx = make_context(sim)
     prn = np.asarray(sim.constellation.prn)
     chunk = sim.advance(600)
-    a, b = PaperEkf(cov_step_s=0.1), PaperEkf(cov_step_s=0.1)
+    a, b = PaperEkf(cov_step_s=cov_step_s), PaperEkf(cov_step_s=cov_step_s)
     a.reset(ctx, start.prior)
     b.reset(ctx, start.prior)
     batch = a.step_batch(measurement_batch(chunk, prn, ctx.nav_period_s))
