@@ -131,6 +131,19 @@ Numerical choices
 * The Jacobians of F and H_a are analytic in the angles and V_Y and use the complex-step
   derivative in phi (exact to rounding, no subtraction error; the track polynomials and
   radii are complex-safe); the tests compare them with central finite differences.
+* Speed (the filter is a sequential recursion: the coefficients of each covariance
+  interval depend on the state, whose gain depends on the covariance, so nothing can be
+  batched over steps without changing the filter). The hot path computes the stage
+  values, the Jacobians, Q, S and sigma^2 in one scalar pass (:meth:`PaperEkf._make_fused`;
+  on the sphere the phi-derivatives are written out by the chain rule instead of a second,
+  complex-step pass; :meth:`PaperEkf._coefficients` is kept as the reference the tests
+  compare it with), and integrates the Riccati equation as ``R' = [R; I]^T H [R; I]``
+  with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h / sigma``, ``Abar = A - S h^T /
+  sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small matrix products per RK4 stage
+  into preallocated arrays. Same numbers as the direct form to rounding (measured over
+  200-s runs of both modes: estimates within 1e-10 of their scale, covariances within
+  2e-10 relative). Per 1000-s paper episode at the default (0.01 s) covariance step: about
+  half the CPU time of the direct form (figures in the project README).
 * The prior (9 x 9 over ENU position, velocity, attitude) is projected on the state by
   weighted least squares along the track (phi and V_Y) and by the attitude Jacobian.
 * Output: lat = phi, lon = lambda(phi), h = h(phi), velocity_n = [k V_Y, V_Y, m V_Y],
@@ -362,6 +375,22 @@ class TrackFunctions:
         hh = _horner2(self.h_c[i], x)
         return lam[0], lam[1], lam[2], hh[0], hh[1]
 
+    def scalar_function(self):
+        """:meth:`scalars` as a closure; for a single cubic piece with the coefficients bound
+        (the same expressions, no piece look-up: the hot path of the stage function)."""
+        if not (self.single and self.order == 4):
+            return self.scalars
+        x0 = self.breaks[0]
+        a0, a1, a2, a3 = self.lam_c[0]
+        b0, b1, b2, b3 = self.h_c[0]
+
+        def scalars(phi):
+            x = phi - x0
+            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
+                    b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x))
+
+        return scalars
+
     def scalars3(self, phi: float):
         """(lam, lam', lam'', lam''', h, h', h'') at one real latitude: one order more than
         :meth:`scalars`, for the analytic phi-derivatives of the covariance coefficients."""
@@ -579,8 +608,9 @@ class PaperEkf:
         self._lvec = (s_pts[:, None] ** np.arange(R)[None, :]) @ minv  # (3, R)
         self._dt_pow = np.array([dt ** (r + 1) for r in range(R)])
         # --- stage functions
-        self._stage = self._make_stage(math.sin, math.cos, math.sqrt, self.track_functions.scalars)
-        self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, self.track_functions.scalars)
+        scalars = self.track_functions.scalar_function()
+        self._stage = self._make_stage(math.sin, math.cos, math.sqrt, scalars)
+        self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, scalars)
         self._fused = self._make_fused()
         self._riccati_layout()
         # --- initial state
@@ -1117,10 +1147,11 @@ class PaperEkf:
     def _gain(self, hneg, s4, sig2):
         """K = (R h + s) / sigma^2 (14) from the cached rows of R, and the rate |dH_a/dY K|."""
         inv = 1.0 / sig2
-        dots = [sum(map(operator.mul, r, hneg)) for r in self._P_rows]
+        mul = operator.mul
+        dots = [sum(map(mul, r, hneg)) for r in self._P_rows]
         dots[4] -= s4
         K = [-d * inv for d in dots]
-        return K, abs(sum(map(operator.mul, hneg, K)))
+        return K, abs(sum(map(mul, hneg, K)))
 
     def _riccati(self, P, H, tau):
         """RK4 of (14)'s Riccati equation with H frozen (:func:`_riccati_rk4_h`), checked."""
