@@ -60,9 +60,11 @@ External motion (pushed step by step) is always computed with the direct method:
 future is unknown, and its quintic Hermite pieces join with limited smoothness.
 
 Where it pays (``benchmarks/bench_generation.py``, whole episodes, truth generator alone,
-loaded 2-core VM, so +-20 %): mountain railway (200 Hz) 24 k -> 170-210 k samples/s, urban
-road (100 Hz, a knot every 2 m, about 7 per second) 22 k -> 55-63 k samples/s, paper
-track (100 Hz, 1000 s, no breakpoints) 0.36 -> 0.79 M samples/s through the simulator. The
+loaded 2-core VM, CPU time, spread of repeated runs): mountain railway (200 Hz) 24 k ->
+175-215 k samples/s, urban road (100 Hz, a knot every 2 m, about 7 per second) 21 k ->
+53-88 k samples/s, paper track (100 Hz, 1000 s, no breakpoints) 0.31-0.41 -> 0.60-0.78 M
+samples/s (through the simulator, truth + ideal IMU: 0.36 -> 0.79 M; at 1 kHz 1.09 ->
+1.52 M). The
 share of blocks in which some fit falls back to the direct method went from 97 % / 98 %
 to 5 % / 22 % (0.2 % / 0.5 % of the samples); 0.9 % / 5.2 % of the samples straddle a
 breakpoint and are integrated piecewise. On the paper track the floors of the tail
