@@ -80,6 +80,27 @@ respect to the estimated position (metres along ENU), velocity and clock::
 ~v/R). The filter's innovation is ``y = z - h(INS)`` and, the error being estimate minus
 truth, its measurement matrix is ``H = -dh/dx``.
 
+Antenna lever arm (``context.gnss.lever_arm_b_m`` = l in body axes; option
+``lever_arm``): the observables are the antenna's, so (TC.2)-(TC.3) are evaluated at
+
+    r_a = r_e + C_en^T C l,   v_a = C_en^T (v_n + C (omega x l) - omega_ie x C l)   (TC.8)
+
+(C the INS attitude, omega the bias-compensated body rate, its mean over the epoch's
+navigation step) and, with ``L`` of :func:`navsim.estimators._inserror.lever_arm_terms`
+(LA.3), the Jacobian by the chain rule through the antenna's position and velocity:
+
+    J[:, 6:15] = J_p L_pos + J_v L_vel   (attitude and bias columns)               (TC.9)
+
+(J_p, J_v: the position and velocity columns of (TC.4) at the antenna, J_p without the
+turn of the ENU axes: an attitude error moves the antenna, not the INS). This adds the
+attitude columns (the antenna moves with the attitude error, ``-[C l x] psi``; its
+velocity by ``-[C (omega x l) x] psi + [omega_ie x][C l x] psi``) and the gyro-bias
+columns (``-C [l x] eg``). The atmospheric delays are evaluated at the antenna too
+(height ``h + (C l)_U``; their attitude partials likewise without the tilt of the local
+vertical). The UKF evaluates (TC.8) exactly at each hypothesis (attitude
+``exp(-[psi x]) C``, rate ``omega - eg``). With a zero lever arm (or ``lever_arm="none"``)
+the code path is the one without these terms, number for number.
+
 EKF
     Joseph-form update (:func:`navsim.estimators._inserror.joseph_update`), symmetrised,
     eigenvalue-floored by the engine's guard.
@@ -140,7 +161,7 @@ References
 .. [1] Sokolov S.V., Vdovichenko S.S. (2012), seed 003, eqs. (2), (3), (6).
 .. [2] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
        Systems, 2nd ed., 2013, sections 14.3.3 (tightly coupled measurement model,
-       eqs. 14.126-14.129) and 9.4.2 (clock states).
+       eqs. 14.126-14.129, with the lever arm), 14.2.3 and 9.4.2 (clock states).
 .. [3] Brown R.G., Hwang P.Y.C., Introduction to Random Signals and Applied Kalman
        Filtering, 4th ed., 2012, section 9.3 (two-state clock model).
 .. [5] Misra P., Enge P., Global Positioning System: Signals, Measurements and
@@ -280,6 +301,8 @@ def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e
     J[m:, 3:6] = -u_n
     g_e = -(rel - u * np.einsum("mi,mi->m", u, rel)[:, None]) / rho[:, None]
     J[m:, 0:3] = g_e @ c_en.T
+    if lever is not None:  # (TC.9): the antenna alone moves (line of sight), not the ENU axes
+        J_antenna = J[:, 0:6].copy()
     # turn of the ENU axes: v_e = v_E E + v_N N + v_U U with rows E, N, U of C_en
     sl, cl = math.sin(lat), math.cos(lat)
     so, co = math.sin(lon), math.cos(lon)
@@ -291,7 +314,7 @@ def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e
     J[m:, 0] += -(u @ dv_dlon) / ((r_e_rad + h) * cl)
     if lever is not None:  # (TC.9) chain rule through the antenna position and velocity
         L = lever[2]
-        J[:, :15] = J[:, 0:3] @ L[0:3] + J[:, 3:6] @ L[3:6]
+        J[:, 6:15] = J_antenna[:, 0:3] @ L[0:3, 6:15] + J_antenna[:, 3:6] @ L[3:6, 6:15]
     if n_states > CD:
         J[:m, CB] = 1.0
         J[m:, CD] = 1.0
@@ -345,8 +368,11 @@ def _slant(s, h, ionosphere_zenith_m, troposphere_zenith_m, k, scale_height_m):
 
 
 def _slant_partials(s, los, rho, c_en, lat, h, ionosphere_zenith_m, troposphere_zenith_m, earth, k,
-                    scale_height_m) -> np.ndarray:
-    """(m, 5) partials of I + T (TC.7) at one position; see :func:`atmosphere_jacobian`."""
+                    scale_height_m, vertical_tilt: bool = True) -> np.ndarray:
+    """(m, 5) partials of I + T (TC.7) at one position; see :func:`atmosphere_jacobian`.
+
+    ``vertical_tilt=False`` leaves out the tilt of the local vertical: the partials for
+    a displacement of the antenna alone, the ENU axes staying those of the INS (TC.9)."""
     r_n, r_e_rad = (float(x) for x in earth.radii(lat))
     F, m, height = _maps(s, k, h, scale_height_m)
     t_h = troposphere_zenith_m * height
@@ -354,8 +380,9 @@ def _slant_partials(s, los, rho, c_en, lat, h, ionosphere_zenith_m, troposphere_
     east, north, up = c_en
     # ds/dp_n: line of sight turning, then the local vertical tilting
     ds = -((up - u * s[:, None]) @ c_en.T) / rho[:, None]
-    ds[:, 0] += (u @ east) / (r_e_rad + h)
-    ds[:, 1] += (u @ north) / (r_n + h)
+    if vertical_tilt:
+        ds[:, 0] += (u @ east) / (r_e_rad + h)
+        ds[:, 1] += (u @ north) / (r_n + h)
     d_delay_ds = ionosphere_zenith_m * (-k * k * s * F**3) + t_h * (-s * m**3 / 1.001**2)
     J = np.empty((len(s), 5))
     J[:, 0:3] = d_delay_ds[:, None] * ds
@@ -770,7 +797,8 @@ class _TightlyCoupled:
                          partials: bool = False, arm_n=None, arm_velocity_n=None):
         """(TC.2), (TC.3) plus the slant delays (TC.6) on one geometry (one ECEF position and
         C_en per hypothesis); with ``partials`` (one position) also (TC.7), (m, 5). With
-        ``arm_n`` the geometry is the antenna's (TC.8), its height ``h + arm_U``."""
+        ``arm_n`` the geometry is the antenna's (TC.8), its height ``h + arm_U``, and the
+        partials come with the position partials for the antenna alone (m, 3)."""
         r_e = self.earth.geodetic_to_ecef(lat, lon, h)
         c_en = mat_en(lat, lon)
         if arm_n is not None:  # (TC.8)
@@ -785,7 +813,11 @@ class _TightlyCoupled:
         if not partials:
             return rho_pr, rate
         J = _slant_partials(s, los, rho, c_en, lat, h, iono_zenith, tropo_zenith, self.earth, k, self._scale_height_m)
-        return rho_pr, rate, J
+        if arm_n is None:
+            return rho_pr, rate, J
+        J_antenna = _slant_partials(s, los, rho, c_en, lat, h, iono_zenith, tropo_zenith, self.earth, k,
+                                    self._scale_height_m, vertical_tilt=False)[:, 0:3]
+        return rho_pr, rate, J, J_antenna
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):  # pragma: no cover - subclasses
         raise NotImplementedError
@@ -875,6 +907,10 @@ class TightlyCoupledEkf(_TightlyCoupled):
     ionosphere_tau_s, troposphere_tau_s : float
         Gauss-Markov time constants of the residual zenith delays, s (defaults 1800 and
         3600; ``math.inf``: random constants).
+    lever_arm : {"auto", "none"}
+        "auto": the observables are the antenna's, at ``context.gnss.lever_arm_b_m``
+        from the IMU (TC.8)-(TC.9); "none": the antenna is taken to be at the IMU
+        (uncompensated).
 
     See the module docstring for the model and equations.
     """
@@ -882,6 +918,17 @@ class TightlyCoupledEkf(_TightlyCoupled):
     kind = "ekf"
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
+        h, J = self.observation_model(sat_pos, sat_vel)
+        # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
+        return joseph_update(P, -J, np.diag(R), z - h)
+
+    def observation_model(self, sat_pos, sat_vel) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted observables h (2m,; m without Doppler) and J = dh/dx at the estimate.
+
+        (TC.2)-(TC.4), with the atmosphere (TC.6)-(TC.7) and the lever arm (TC.8)-(TC.9)
+        when they are on; ``sat_pos``, ``sat_vel`` (m, 3) of the channels used.
+        """
+        m = len(sat_pos)
         st, eng = self.engine.state, self.engine
         lever = self._lever_terms()
         J = observation_jacobian(st.lat, st.lon, st.h, st.velocity_n, sat_pos, sat_vel, self.earth,
@@ -891,20 +938,17 @@ class TightlyCoupledEkf(_TightlyCoupled):
         else:  # (TC.6) and (TC.7): position partials and the two zenith-delay columns
             cb, cd = (eng.clock if eng.with_clock else (0.0, 0.0))
             arm = (None, None) if lever is None else lever[:2]
-            rho, rate, J_atm = self._with_atmosphere(st.lat, st.lon, st.h, st.velocity_n, cb, cd, eng.atm[0],
-                                                     eng.atm[1], sat_pos, sat_vel, partials=True,
-                                                     arm_n=arm[0], arm_velocity_n=arm[1])
+            out = self._with_atmosphere(st.lat, st.lon, st.h, st.velocity_n, cb, cd, eng.atm[0], eng.atm[1],
+                                        sat_pos, sat_vel, partials=True, arm_n=arm[0], arm_velocity_n=arm[1])
+            rho, rate, J_atm = out[:3]
             J = np.concatenate([J, np.zeros((2 * m, 2))], axis=1)
             J[:m, 0:3] += J_atm[:, 0:3]
-            if lever is not None:  # the delays move with the antenna: (TC.9) for their position partials
-                J[:m, 6:9] += J_atm[:, 0:3] @ lever[2][0:3, 6:9]
+            if lever is not None:  # the delays move with the antenna: (TC.9) for their partials
+                J[:m, 6:9] += out[3] @ lever[2][0:3, 6:9]
             J[:m, eng.atm_index:] = J_atm[:, 3:]
         if self.options.use_doppler:
-            h = np.concatenate([rho, rate])
-        else:
-            h, J = rho, J[:m]
-        # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
-        return joseph_update(P, -J, np.diag(R), z - h)
+            return np.concatenate([rho, rate]), J
+        return rho, J[:m]
 
 
 class TightlyCoupledUkf(_TightlyCoupled):
