@@ -6,7 +6,8 @@ layers:
 * pure functions of the linearised error model: :func:`error_dynamics` (the continuous
   matrix F), :func:`noise_density` (Qc), :func:`transition` (Phi and Qd over a time span by
   the series below), :func:`joseph_update`, :func:`correct_state`,
-  :func:`compensate_increments`, :func:`solution_rows`;
+  :func:`compensate_increments`, :func:`solution_rows`, :func:`lever_arm_terms` (the
+  GNSS antenna's offset, velocity and their error partials (LA.3) for the aided filters);
 * :class:`ErrorStateIns`, a stateful engine: the INS mechanisation of
   :func:`navsim.strapdown.ins.integrate` on bias-compensated increments, the 15 x 15
   covariance propagated once per *covariance interval*, and closed-loop (feedback)
@@ -93,6 +94,8 @@ References
 .. [2] Savage P.G., Strapdown Analytics, 2nd ed., 2007, ch. 12 (error equations).
 .. [3] Van Loan C.F. (1978), Computing integrals involving the matrix exponential, IEEE
        TAC 23(3): the integral that the Qd series above truncates.
+.. [4] Groves (2013) [1], sections 14.2.3 and 14.3.3: the antenna lever arm in the
+       measurement models (:func:`lever_arm_terms`).
 """
 
 from __future__ import annotations

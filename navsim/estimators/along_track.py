@@ -83,7 +83,13 @@ its derivative (cubic Hermite like the rest). Both updates then use the antenna'
 (the antenna velocity is ``v dr_a/ds``), and the "fix" mode projects ``r_fix - C_eb l``
 on the track and predicts the velocity fix along ``t_e`` as ``v t_e . dr_a/ds`` (AT.10).
 The offset from the body oscillations (3 m x 0.15 deg = 8 mm on mountain-railway) is
-left out.
+left out. Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
+forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
+horizontal RMS after 20 s, along-track NEES of 2 dof): pseudorange update 0.16 m
+compensated, NEES 2.05, per-second means over 20 seeds inside the 95 % band 100 % of the
+time, against 1.74 m and NEES 215 uncompensated (5 seeds); "fix" update 0.19 m, NEES
+1.88, 92 %, against 1.44 m. Full scenarios (standalone receiver, 400 s, 2 seeds):
+mountain-railway 0.70 m against 1.67 m, urban-road 0.81 m against 2.21 m.
 
 Output
 ------

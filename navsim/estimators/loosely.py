@@ -36,6 +36,14 @@ of ``L`` (LA.3): identity on position/velocity plus the attitude columns ``-[C l
 columns ``-C [l x]`` (velocity). With a zero lever arm (or ``lever_arm="none"``) the
 code is the one without these terms, number for number.
 
+Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
+forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
+horizontal RMS after 20 s): compensated 0.26 m, mean NEES 9.1, per-second means over
+20 seeds inside the 95 % chi-square band 99 % of the time; uncompensated (5 seeds)
+1.48 m horizontal, 2.95 m vertical, NEES 239. On the full mountain-railway scenario
+(standalone receiver, 400 s, 2 seeds) 1.24 m compensated (the same as with the antenna at
+the IMU) against 1.73 m uncompensated.
+
 Process noise: :meth:`ImuNoise.from_nominal` (ARW, VRW, Gauss-Markov biases with the
 nominal sigma and correlation time, rate random walk). Update in Joseph form, covariance
 symmetrised and guarded; a divergence becomes ``extra["diverged"]`` (and the attribute

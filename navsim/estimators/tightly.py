@@ -99,7 +99,13 @@ columns (``-C [l x] eg``). The atmospheric delays are evaluated at the antenna t
 (height ``h + (C l)_U``; their attitude partials likewise without the tilt of the local
 vertical). The UKF evaluates (TC.8) exactly at each hypothesis (attitude
 ``exp(-[psi x]) C``, rate ``omega - eg``). With a zero lever arm (or ``lever_arm="none"``)
-the code path is the one without these terms, number for number.
+the code path is the one without these terms, number for number. Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
+forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
+horizontal RMS after 20 s), EKF and UKF alike: compensated 0.26 m, vertical 0.12 m, mean
+NEES 9.0, per-second means over 20 seeds inside the 95 % band 100 % of the time;
+uncompensated (5 seeds) 1.49 m horizontal, 3.01 m vertical, NEES 926. Full
+mountain-railway (standalone receiver, 400 s, 2 seeds, EKF): 0.48 m compensated (0.47 m
+with the antenna at the IMU), 1.53 m uncompensated.
 
 EKF
     Joseph-form update (:func:`navsim.estimators._inserror.joseph_update`), symmetrised,
