@@ -192,3 +192,17 @@ def test_lever_arm_round_trips_and_enters_the_hash():
     blob = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str)
     assert sc.config_hash() == hashlib.sha256(blob.encode()).hexdigest()[:16]
     assert dataclasses.replace(sc.gnss, lever_arm_m=(0.0, 0.0, 0.0)) == sc.gnss
+
+
+def test_simulator_batch_member_equals_the_single_simulator_with_a_lever_arm():
+    from navsim.simulator import SimulatorBatch
+
+    sc = _short("urban-road", arm=ARM, duration=4.0, preset="standalone")
+    batch = SimulatorBatch(sc, 2)
+    batch.reset([3, 4])
+    chunk = batch.advance(400)
+    single = Simulator(sc)
+    single.reset(4)
+    alone = single.advance(400)
+    for f in ("pseudorange_m", "pseudorange_rate_mps", "valid"):
+        assert np.array_equal(getattr(chunk.member(1).gnss, f), getattr(alone.gnss, f))
