@@ -982,10 +982,18 @@ def apply_imu_errors_batch(
     z = np.empty((members, n, 6 * (order + 2)))
     for j, rng in enumerate(rngs):
         rng.standard_normal(out=z[j])
-    # working layout (sensor, slot, member, sample, axis): every slot contiguous, so the
+    # each slot used is copied once to a contiguous (member, sample, axis) array, so the
     # elementwise passes below run over long contiguous arrays (the numbers are those
     # of the draw order above)
-    zt = np.ascontiguousarray(z.reshape(members, n, 2, order + 2, 3).transpose(2, 3, 0, 1, 4))
+    z = z.reshape(members, n, 2, order + 2, 3)
+    slots: dict[tuple[int, int], NDArray] = {}
+
+    def slot(s_idx: int, k: int) -> NDArray:
+        """Draw slot k of sensor s_idx as a contiguous (B, n, 3) array (copied once)."""
+        if (s_idx, k) not in slots:
+            slots[s_idx, k] = np.ascontiguousarray(z[:, :, s_idx, k])
+        return slots[s_idx, k]
+
     sensors = (model.gyro, model.accel)
     r = np.arange(1, order + 1)
     h_r_fact = h**r / np.array([math.factorial(int(k)) for k in r], dtype=float)  # h^r / r!
@@ -994,16 +1002,24 @@ def apply_imu_errors_batch(
     rrw_start = np.stack([s.bias_random_walk for s in states])
 
     # Gauss-Markov and rate-random-walk biases: exact discrete propagation between
-    # samples, held constant within each sample (see the module docstring).
+    # samples, held constant within each sample (see the module docstring). Switched
+    # off (zero sigma and state) they stay exactly zero and nothing is computed.
     sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
     tau = np.stack([s.bias_correlation_time_s for s in sensors])
-    phi = np.exp(-h / tau)
-    gm_coef = sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau))  # (2, 3)
-    gm_drive = (gm_coef[:, None, None] * zt[:, order]).transpose(1, 2, 0, 3)  # (B, n, 2, 3)
     rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
-    rrw_drive = (rrw_gain[:, None, None] * zt[:, order + 1]).transpose(1, 2, 0, 3)
-    gm_next = _first_order_recursion(phi, gm_drive, gm_start)  # b_1..b_n, (B, n, 2, 3)
-    rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
+    zero_bias = np.zeros((members, n, 2, 3))
+    if sigma_gm.any() or gm_start.any():
+        phi = np.exp(-h / tau)
+        gm_coef = sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau))  # (2, 3)
+        gm_drive = gm_coef[None, None] * z[:, :, :, order]  # (B, n, 2, 3)
+        gm_next = _first_order_recursion(phi, gm_drive, gm_start)  # b_1..b_n
+    else:
+        gm_next = zero_bias
+    if rrw_gain.any() or rrw_start.any():
+        rrw_drive = rrw_gain[None, None] * z[:, :, :, order + 1]
+        rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
+    else:
+        rrw_next = zero_bias
     varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
     varying += np.concatenate((rrw_start[:, None], rrw_next[:, :-1]), axis=1)
 
@@ -1054,11 +1070,10 @@ def apply_imu_errors_batch(
 
         # White noise: exact joint draw of the R integrals, Cov = q h^(i+j-1) / (...).
         if np.any(density[s_idx]):
-            z_white = zt[s_idx]  # (R + 2, B, n, 3), slots 0..R-1 white
             for i in range(order):  # lower-triangular Cholesky factor times the draws
-                unit = noise_factor[i, 0] * z_white[0]
+                unit = noise_factor[i, 0] * slot(s_idx, 0)  # slots 0..R-1: white
                 for q in range(1, i + 1):
-                    unit += noise_factor[i, q] * z_white[q]
+                    unit += noise_factor[i, q] * slot(s_idx, q)
                 noise_i = unit * (noise_scale[i] * density[s_idx])
                 out[i] += noise_i
                 if i == 0:
