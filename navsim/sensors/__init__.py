@@ -1,5 +1,6 @@
-"""Sensors: IMU (:mod:`navsim.sensors.imu`), GNSS (:mod:`navsim.sensors.gnss`) and GNSS
-signal outages (:mod:`navsim.sensors.outages`).
+"""Sensors: IMU (:mod:`navsim.sensors.imu`), GNSS (:mod:`navsim.sensors.gnss`), GNSS
+signal outages (:mod:`navsim.sensors.outages`) and the wheel odometer
+(:mod:`navsim.sensors.odometer`).
 
 All of them are truth-side models: they turn the true motion into measurements with
 errors drawn from explicit ``numpy.random.Generator`` streams and carry their recursive
@@ -8,7 +9,7 @@ error states in frozen state objects (chunk-invariant generation).
 
 from __future__ import annotations
 
-from . import gnss, imu, outages
+from . import gnss, imu, odometer, outages
 from .gnss import (
     C_LIGHT,
     Constellation,
@@ -30,11 +31,19 @@ from .gnss import (
     walker_constellation,
     write_yuma,
 )
+from .odometer import (
+    OdometerModel,
+    OdometerOutput,
+    OdometerState,
+    simulate_odometer,
+    simulate_odometer_batch,
+)
 from .outages import OutageModel, OutageState, canyon_mask_elevation, visibility
 
 __all__ = [
     "gnss",
     "imu",
+    "odometer",
     "outages",
     "C_LIGHT",
     "Constellation",
@@ -55,6 +64,11 @@ __all__ = [
     "velocity_fix",
     "walker_constellation",
     "write_yuma",
+    "OdometerModel",
+    "OdometerOutput",
+    "OdometerState",
+    "simulate_odometer",
+    "simulate_odometer_batch",
     "OutageModel",
     "OutageState",
     "canyon_mask_elevation",
