@@ -21,7 +21,12 @@ position_e, velocity_e (n, 3)           ECEF position m, velocity m/s
 dtheta_r, dv_r         (n, R, 3)        IMU multiple-integral increments over the step
 dtheta_sample, dv_sample (n, m, R, 3)   the same per IMU sample
 rate_b, accel_b        (n, m, 3)        IMU rate outputs at sample ends
+odometer_ds_m          (n,)             wheel odometer distance over the step, m
+odometer_pulses        (n,) int64       encoder pulses counted in the step
 =====================  ===============  ==========================================
+
+The two odometer keys are present only when the scenario has an odometer
+(``[odometer] enabled = true``); files of scenarios without one are unchanged.
 
 Per GNSS epoch (leading dimension = epochs; ``gnss_step`` is the global step index):
 ``gnss_t`` (k,), ``gnss_step`` (k,), ``gnss_sat_pos_e``/``gnss_sat_vel_e`` (k, m, 3),
@@ -45,13 +50,15 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["chunk_arrays", "write_npz", "write_csv", "STEP_KEYS", "GNSS_KEYS"]
+__all__ = ["chunk_arrays", "write_npz", "write_csv", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
 
 STEP_KEYS = (
     "t", "s", "speed", "accel_along", "lat", "lon", "h", "velocity_n", "heading", "pitch", "roll",
     "omega_ib_b", "specific_force_b", "position_e", "velocity_e",
     "dtheta_r", "dv_r", "dtheta_sample", "dv_sample", "rate_b", "accel_b",
 )
+ODOMETER_KEYS = ("odometer_ds_m", "odometer_pulses")
+"""Per-step keys written after :data:`STEP_KEYS` when the chunk has an odometer."""
 GNSS_KEYS = (
     "gnss_t", "gnss_step", "gnss_sat_pos_e", "gnss_sat_vel_e", "gnss_pseudorange_m",
     "gnss_pseudorange_rate_mps", "gnss_valid", "gnss_elevation", "gnss_azimuth",
@@ -67,6 +74,9 @@ def chunk_arrays(chunk, n_sats: int | None = None) -> dict[str, np.ndarray]:
         dtheta_r=imu.dtheta_r, dv_r=imu.dv_r, dtheta_sample=imu.dtheta_sample,
         dv_sample=imu.dv_sample, rate_b=imu.rate_b, accel_b=imu.accel_b,
     )
+    odometer = getattr(chunk, "odometer", None)
+    if odometer is not None:
+        out.update(odometer_ds_m=odometer.ds_m, odometer_pulses=odometer.pulses)
     g = chunk.gnss
     if g is None:
         m = n_sats or 0
@@ -145,7 +155,7 @@ def write_csv(path: str | Path, chunks: Iterable, n_sats: int | None = None) -> 
                        "azimuth", "sat_x", "sat_y", "sat_z", "sat_vx", "sat_vy", "sat_vz"])
         for chunk in chunks:
             arrays = chunk_arrays(chunk, n_sats)
-            step_arrays = [(k, arrays[k]) for k in STEP_KEYS]
+            step_arrays = [(k, arrays[k]) for k in STEP_KEYS + ODOMETER_KEYS if k in arrays]
             if not header_done:
                 steps.writerow([c for k, a in step_arrays for c in _columns(k, a)])
                 header_done = True

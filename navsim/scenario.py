@@ -1,7 +1,7 @@
 """Scenarios: frozen, typed configuration that round-trips to TOML.
 
 A scenario is track + motion + IMU + GNSS + outages + duration + rates + initial
-uncertainty. The ``[outages]`` table holds the fields of
+uncertainty (+ an optional wheel odometer, ``[odometer]``, off by default). The ``[outages]`` table holds the fields of
 :class:`navsim.sensors.outages.OutageModel` directly. Bundled scenarios live in ``navsim/scenarios/*.toml``; :func:`load_scenario`
 takes a bundled name or a path. Every value is checked when the scenario is built, and a
 bad one raises :class:`~navsim.errors.ConfigError` naming the field (dotted path), the
@@ -36,6 +36,8 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, check_multiple, check_positive
+from .sensors.odometer import PRESET_NAMES as _ODOMETER_PRESETS
+from .sensors.odometer import OdometerModel
 from .sensors.outages import OutageModel
 
 if sys.version_info >= (3, 11):
@@ -52,6 +54,7 @@ __all__ = [
     "ImuConfig",
     "GnssConfig",
     "InitialUncertainty",
+    "OdometerConfig",
     "Scenario",
     "load_scenario",
     "list_scenarios",
@@ -255,6 +258,43 @@ class GnssConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class OdometerConfig:
+    """Wheel odometer (:mod:`navsim.sensors.odometer`): off by default.
+
+    ``preset``: one of :meth:`navsim.sensors.odometer.OdometerModel.preset`
+    (``"ideal"``, ``"rail-tachometer"``, ``"car-wheel-speed"``); ``overrides``: fields of
+    the preset's :class:`~navsim.sensors.odometer.OdometerModel`. The table is left out
+    of :meth:`Scenario.to_dict` (and so of the TOML text and the config hash) while it
+    holds its defaults, so scenarios without an odometer are unchanged.
+    """
+
+    enabled: bool = False
+    preset: str = "rail-tachometer"
+    overrides: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.preset not in _ODOMETER_PRESETS:
+            raise ConfigError("odometer.preset", f"one of {_ODOMETER_PRESETS}", self.preset)
+        self.model()  # validates the overrides
+
+    def model(self) -> OdometerModel:
+        """The truth-side odometer model: the preset with the overrides applied."""
+        base = OdometerModel.preset(self.preset)
+        if not self.overrides:
+            return base
+        names = [f.name for f in dataclasses.fields(OdometerModel)]
+        for key in self.overrides:
+            if key not in names:
+                raise ConfigError(f"odometer.overrides.{key}", f"a field of OdometerModel: {names}", key)
+        try:
+            return dataclasses.replace(base, **self.overrides)
+        except ConfigError:
+            raise
+        except (TypeError, ValueError) as exc:
+            raise ConfigError("odometer.overrides", "valid OdometerModel values", f"{self.overrides} ({exc})") from None
+
+
+@dataclass(frozen=True, slots=True)
 class InitialUncertainty:
     """1-sigma of the initial estimate handed to estimators (per axis).
 
@@ -286,6 +326,7 @@ class Scenario:
     gnss: GnssConfig = GnssConfig()
     outages: OutageModel = OutageModel()
     initial: InitialUncertainty = InitialUncertainty()
+    odometer: OdometerConfig = OdometerConfig()
     base_dir: str = ""  # folder that relative file names refer to (not serialised)
 
     def __post_init__(self):
@@ -308,6 +349,9 @@ class Scenario:
         """Nested dict of plain values (TOML-ready); ``from_dict(to_dict())`` round-trips."""
         data = _to_dict(self)
         data.pop("base_dir", None)
+        for section, default in _OMIT_SECTION_IF_DEFAULT:
+            if data.get(section) == _to_dict(default):
+                del data[section]
         return data
 
     def to_toml(self) -> str:
@@ -340,6 +384,10 @@ class Scenario:
 
 
 _HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]),)
+
+_OMIT_SECTION_IF_DEFAULT = (("odometer", OdometerConfig()),)
+"""Sections added after scenarios were first published, left out of :meth:`Scenario.to_dict`
+(so of the TOML text and the hash) while they hold their defaults."""
 """(section, field, default as in :meth:`Scenario.to_dict`) left out of the hash at the default."""
 
 

@@ -9,7 +9,9 @@ Time base
     GNSS epochs fall at the *end* of every ``steps_per_epoch``-th step.
 Random streams
     ``reset(seed)`` makes ``SeedSequence(seed)`` and spawns, in this fixed order, the
-    streams ``motion, imu, gnss, outages, initial_error`` (:data:`STREAMS`). Each sensor
+    streams ``motion, imu, gnss, outages, initial_error, odometer`` (:data:`STREAMS`;
+    ``odometer`` was appended last: a spawned child keeps its index, so the earlier
+    streams are the same numbers as before it existed). Each sensor
     draws a fixed-width block per sample or epoch, so the numbers do not depend on the
     chunk size, and switching one source off changes no other stream.
 IMU truth
@@ -52,11 +54,12 @@ from .scenario import Scenario
 from .truthgen import TruthGenerator
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
+from .sensors import odometer as odometer_mod
 from .sensors import outages as outage_mod
 
 __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile"]
 
-STREAMS = ("motion", "imu", "gnss", "outages", "initial_error")
+STREAMS = ("motion", "imu", "gnss", "outages", "initial_error", "odometer")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
 
 IMU_GROUP = 32
@@ -117,6 +120,9 @@ class Chunk:
         ``gnss_step`` (k,) gives, for each epoch, the index of its step in the chunk.
     receiver_outage : (k,) bool
         True where the whole receiver was in an outage at that epoch.
+    odometer : OdometerOutput or None
+        The wheel odometer over each step (``ds_m``, ``pulses``: (n,)), None when the
+        scenario has no odometer (:mod:`navsim.sensors.odometer`).
     """
 
     step0: int
@@ -126,6 +132,7 @@ class Chunk:
     gnss: object | None
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
+    odometer: object | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -146,6 +153,8 @@ class ChunkBatch:
         Arrays with a leading member axis (B, k, ...); the geometry (``t``,
         ``sat_pos_e``, ``sat_vel_e``, ``elevation``, ``azimuth``) as broadcast views.
     receiver_outage : (B, k) bool
+    odometer : OdometerOutput or None
+        Arrays (B, n); None without an odometer.
     """
 
     step0: int
@@ -155,6 +164,7 @@ class ChunkBatch:
     gnss: object | None
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
+    odometer: object | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -169,8 +179,10 @@ class ChunkBatch:
         imu = ImuBlock(*(getattr(self.imu, f)[j] for f in ImuBlock.__slots__))
         gnss = None if self.gnss is None else type(self.gnss)(
             **{f: getattr(self.gnss, f)[j] for f in type(self.gnss).__slots__})
+        odometer = None if self.odometer is None else type(self.odometer)(
+            **{f: getattr(self.odometer, f)[j] for f in type(self.odometer).__slots__})
         return Chunk(step0=self.step0, t=self.t, truth=self.truth, imu=imu, gnss=gnss, gnss_step=self.gnss_step,
-                     receiver_outage=self.receiver_outage[j])
+                     receiver_outage=self.receiver_outage[j], odometer=odometer)
 
 
 @dataclass(frozen=True, slots=True)
@@ -304,6 +316,7 @@ class Simulator:
         self._imu_error_free = imu_mod.is_error_free(self.imu_model)
         self.constellation, self.gnss_model = build_gnss(scenario, self.earth)
         self.outage_model = scenario.outages
+        self.odometer_model = scenario.odometer.model() if scenario.odometer.enabled else None
         self.truthgen = TruthGenerator(
             self.track, self.profile, self.oscillations, self.timing.imu_period_s, scenario.imu.orders,
             scenario.imu.quadrature_nodes, t_end=self.timing.duration_s)
@@ -360,6 +373,9 @@ class Simulator:
         self.gnss_state = gnss_mod.GnssState.initial(self.gnss_model, self.constellation, self.rngs["gnss"])
         self.outage_state = outage_mod.OutageState.initial(self.outage_model, len(self.constellation.prn), self.rngs["outages"])
         truth0 = self.truth_at(np.array([0.0]))
+        if self.odometer_model is not None:
+            self.odometer_state = odometer_mod.OdometerState.initial(self.odometer_model, self.rngs["odometer"])
+            self._odometer_s = float(truth0.s[0])  # arc length at the end of the last step
         return Start(truth=truth0, prior=self._draw_prior(truth0))
 
     def _draw_prior(self, truth0: TrueState) -> Prior:
@@ -570,10 +586,20 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
         gnss_epochs = dataclasses.replace(gnss_epochs, valid=gnss_epochs.valid & visible)
         for sim, g_state, o_state in zip(sims, gnss_states, outage_states):
             sim.gnss_state, sim.outage_state = g_state, o_state
+    # --- wheel odometer: true arc-length increments of the steps, errors per member
+    odometer = None
+    if lead.odometer_model is not None:
+        ds_true = np.diff(truth.s, prepend=lead._odometer_s)
+        odometer, odo_states = odometer_mod.simulate_odometer_batch(
+            ds_true, truth.accel_along, lead.odometer_model, [sim.odometer_state for sim in sims],
+            [sim.rngs["odometer"] for sim in sims], dt=dt)
+        s_end = float(truth.s[-1])
+        for sim, o_state in zip(sims, odo_states):
+            sim.odometer_state, sim._odometer_s = o_state, s_end
     for sim in sims:
         sim._step += n
     return ChunkBatch(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
-                      gnss_step=epoch_steps, receiver_outage=receiver_outage)
+                      gnss_step=epoch_steps, receiver_outage=receiver_outage, odometer=odometer)
 
 
 class SimulatorBatch:

@@ -79,7 +79,8 @@ def test_streams_are_independent():
     valid = cat(out, FIELDS["valid"])
     t = cat(out, lambda c: c.gnss.t)
     assert not valid[(t >= 2.0) & (t < 5.0)].any() and valid[t < 2.0].any()
-    assert STREAMS == ("motion", "imu", "gnss", "outages", "initial_error")
+    # spawn order: streams added later are appended (a spawned child keeps its index)
+    assert STREAMS == ("motion", "imu", "gnss", "outages", "initial_error", "odometer")
 
 
 def test_block_generation_matches_direct_quadrature():
