@@ -500,7 +500,8 @@ def _arm_runs(scenario, seeds, **options):
 
 
 def _horizontal(runs, skip_s=20.0):
-    """Horizontal RMS error (m) after skip_s from the states: along-track arc error of phi."""
+    """Horizontal RMS error (m) after skip_s from the states: the solution lies on the track, so
+    its error is the arc between phi and the true phi (spherical radius: a comparison figure)."""
     out = []
     for est, e, *_ in runs:
         tf = est.track_functions
@@ -548,8 +549,8 @@ def test_lever_arm_on_mountain_railway_extended_short():
     """The other estimators' lever-arm case (curves with cant, tactical IMU with the filters'
     error model, 1 m / 0.05 m/s GNSS; tests/estimators/lever_arm_case.py) in extended mode
     (bias states), 1 seed x 60 s: compensated as good as the antenna at the IMU, uncompensated
-    metre-level and inconsistent. Measured (2 seeds): 0.078 m / 0.079 m / 0.97 m, NEES 3.2 /
-    3.2 / 109, NIS/dof 0.98 / 0.98 / 2.8."""
+    metre-level and inconsistent. Measured (compensated / no arm / uncompensated):
+    0.065 / 0.064 / 0.99 m, NEES 3.95 / 3.95 / 110, NIS/dof 0.945 / 0.945 / 2.74."""
     from lever_arm_case import lever_scenario
 
     out = {}
@@ -567,7 +568,12 @@ def test_lever_arm_on_mountain_railway_extended_short():
 @pytest.mark.slow
 def test_lever_arm_nees_consistency_twenty_seeds():
     """20 seeds x 200 s of the short test's case: the seed-averaged compensated NEES in the
-    95 % chi-square band, NIS per dof 1; 5 uncompensated seeds far outside."""
+    95 % chi-square band, NIS per dof 1; 5 uncompensated seeds far outside.
+
+    Measured: compensated 99.7 % of the times inside [3.71, 6.48], mean 5.14, NIS/dof
+    1.002, horizontal RMS 0.169 m (no arm: 99.7 %, 5.14, 1.002, 0.169 m); uncompensated
+    mean NEES 72 (band top 8.1), NIS/dof 2.44, 0.75 m (compensated, same 5 seeds: 0.175 m).
+    """
     comp = _arm_runs(_arm_scenario(200.0), range(20), cov_step_s=0.1)
     nees = np.mean([r[3] for r in comp], axis=0)[2000:]
     lo, hi = chi2.ppf([0.025, 0.975], 5 * 20) / 20
