@@ -26,6 +26,7 @@ from .estimators.base import (
     MeasurementBatch,
     NominalGnss,
     NominalImu,
+    NominalOdometer,
 )
 from .scenario import Scenario
 from .sensors import imu as imu_mod
@@ -79,12 +80,22 @@ def make_context(sim: Simulator) -> Context:
         troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
         lever_arm_b_m=tuple(float(x) for x in sim.scenario.gnss.lever_arm_m),  # surveyed at installation
     )
+    odometer = None
+    model = getattr(sim, "odometer_model", None)
+    if model is not None:  # the datasheet of the odometer (never its drawn errors)
+        odometer = NominalOdometer(
+            pulse_length_m=model.pulse_length_m, scale_factor_sigma=model.scale_factor_sigma,
+            scale_factor_gm_sigma=model.scale_factor_gm_sigma, scale_factor_tau_s=model.scale_factor_gm_tau_s,
+            noise_density_m_per_sqrt_s=model.noise_density_m_per_sqrt_s,
+            slip_fraction=max(model.slip_fraction, model.slide_fraction),
+            slip_accel_threshold_mps2=model.slip_accel_threshold_mps2 if model.has_slip else float("inf"),
+        )
     timing = sim.timing
     return Context(
         track=sim.track, earth=sim.earth, nav_period_s=timing.nav_period_s, imu_period_s=timing.imu_period_s,
         gnss_period_s=timing.gnss_period_s, samples_per_step=timing.samples_per_step,
         orders=sim.scenario.imu.orders, imu=imu, gnss=gnss,
-        scenario_name=sim.scenario.name, config_hash=sim.scenario.config_hash(),
+        scenario_name=sim.scenario.name, config_hash=sim.scenario.config_hash(), odometer=odometer,
     )
 
 
@@ -107,6 +118,7 @@ def measurement_batch(chunk: Chunk, prn: np.ndarray, dt: float) -> MeasurementBa
         step=chunk.step0 + np.arange(len(chunk)), t=chunk.t, dt=dt, dtheta_r=imu.dtheta_r, dv_r=imu.dv_r,
         dtheta_sub=imu.dtheta_sample[:, :, 0], dv_sub=imu.dv_sample[:, :, 0],
         gnss=tuple(sorted(_epochs(chunk, prn).items())),
+        odometer_ds_m=None if chunk.odometer is None else chunk.odometer.ds_m,
     )
 
 
@@ -114,10 +126,12 @@ def measurements(chunk: Chunk, prn: np.ndarray, dt: float) -> Iterator[Measureme
     """The per-step measurements of a chunk (GNSS attached at epoch steps)."""
     epochs = _epochs(chunk, prn)
     imu = chunk.imu
+    odometer = None if chunk.odometer is None else chunk.odometer.ds_m.tolist()
     for i in range(len(chunk)):
         yield Measurement(
             step=chunk.step0 + i, t=float(chunk.t[i]), dt=dt, dtheta_r=imu.dtheta_r[i], dv_r=imu.dv_r[i],
             dtheta_sub=imu.dtheta_sample[i, :, 0], dv_sub=imu.dv_sample[i, :, 0], gnss=epochs.get(i),
+            odometer_ds_m=None if odometer is None else odometer[i],
         )
 
 

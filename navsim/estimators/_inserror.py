@@ -13,7 +13,11 @@ layers:
   covariance propagated once per *covariance interval*, and closed-loop (feedback)
   measurement updates. An estimator owns one engine, calls :meth:`ErrorStateIns.advance`
   with the IMU data of one or many steps and :meth:`ErrorStateIns.update` with a linear
-  (linearised) measurement of the error state.
+  (linearised) measurement of the error state;
+* :class:`AuxStateIns`, the same engine with auxiliary error states whose dynamics do not
+  involve the INS errors (random walks: e.g. a wheel-odometer scale factor), and
+  :func:`body_velocity_terms`, the body-frame velocity and its error partials of the
+  odometer / non-holonomic-constraint updates.
 
 Error state (15,), every navigation error "estimate minus truth" as in
 :mod:`navsim.estimators.base`::
@@ -133,6 +137,8 @@ __all__ = [
     "BodyTerms",
     "body_terms",
     "ErrorStateIns",
+    "AuxStateIns",
+    "body_velocity_terms",
     "nis_threshold",
 ]
 
@@ -730,6 +736,11 @@ class ErrorStateIns:
         return (v * np.maximum(w, 1e-12 * max(float(w.max()), 1e-300))) @ v.T
 
     @property
+    def dynamics(self) -> np.ndarray:
+        """F (15, 15) of the current covariance interval (frozen at its start)."""
+        return self._series.F
+
+    @property
     def covariance(self) -> np.ndarray:
         """The full 15 x 15 covariance at the last processed step."""
         if self._pending is not None:
@@ -840,6 +851,117 @@ class ErrorStateIns:
         st = self.state
         return solution_rows(np.array([st.lat]), np.array([st.lon]), np.array([st.h]),
                              st.velocity_n[None], st.quat_nb[None])[0]
+
+
+def body_velocity_terms(mat_nb, velocity_n) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame velocity ``v_b = C^T v_n`` and its partials over the error state.
+
+    From ``C_est = (I + [psi x]) C`` and ``v_est = v + dv``::
+
+        v_b(est) - v_b(true) = C^T dv + C^T [v_n x] psi                          (OD.6)
+
+    (first order; ``-[psi x] v = [v x] psi``). Used by the wheel-odometer forward-speed
+    update and the non-holonomic constraint (zero lateral and vertical body velocity of
+    a vehicle on its wheels); tests/estimators/test_odometer_aiding.py checks it against
+    finite differences through :func:`correct_state`.
+
+    Returns
+    -------
+    velocity_b : (3,) m/s.  J : (3, 15) rows x (right), y (forward), z (up).
+    """
+    C = np.asarray(mat_nb, dtype=float)
+    v = np.asarray(velocity_n, dtype=float)
+    J = np.zeros((3, N_STATES))
+    J[:, VEL] = C.T
+    J[:, ATT] = C.T @ _skew3(v)  # (OD.6)
+    return C.T @ v, J
+
+
+class AuxStateIns(ErrorStateIns):
+    """:class:`ErrorStateIns` plus ``n_aux`` auxiliary error states (random walks).
+
+    The auxiliary states (e.g. the wheel-odometer scale factor) neither drive nor are
+    driven by the INS errors, so over a covariance interval ``Phi = diag(Phi_15, I)`` and
+    ``Qd = diag(Qd_15, q_aux tau)``: the engine keeps propagating its 15 x 15 block and
+    this class carries the cross-covariance ``P_na(tau) = Phi_15(tau) P_na`` and
+    ``P_aa(tau) = P_aa + diag(q_aux) tau`` from the interval start, assembling the full
+    matrix only at updates (the device of the tightly coupled filter's clock engine).
+    Every :meth:`update` is made on the full state; a 15-column H is padded with zeros.
+
+    Parameters
+    ----------
+    aux_variance : (n_aux,) initial variances. aux_psd : (n_aux,) random-walk PSDs
+    (per second). Other parameters as :class:`ErrorStateIns`.
+
+    Attributes
+    ----------
+    aux : ndarray (n_aux,)
+        The estimates of the auxiliary quantities; the error state is ``aux - truth``
+        and the feedback subtracts the estimated error.
+    """
+
+    def __init__(self, context, prior, noise: ImuNoise, *, aux_variance, aux_psd, **kw):
+        var = np.asarray(aux_variance, dtype=float).reshape(-1)
+        self.aux_psd = np.asarray(aux_psd, dtype=float).reshape(-1)
+        self.n_aux = len(var)
+        self.n_states = N_STATES + self.n_aux
+        self.aux = np.zeros(self.n_aux)
+        self.P_na = np.zeros((N_STATES, self.n_aux))
+        self.P_aa = np.diag(var)
+        self._fresh = True  # the next interval start carries no auxiliary propagation
+        super().__init__(context, prior, noise, **kw)
+
+    def _aux_blocks(self) -> tuple[np.ndarray, np.ndarray]:
+        """P_na and P_aa at the current step of the interval."""
+        tau = self._j * self.dt
+        if tau == 0.0:
+            return self.P_na, self.P_aa
+        phi = self._series.phi(np.array([tau]))[0]
+        return phi @ self.P_na, self.P_aa + np.diag(self.aux_psd * tau)
+
+    def _start_interval(self, P: np.ndarray) -> None:
+        if not self._fresh:  # the engine restarts an interval on its own: carry the blocks
+            self.P_na, self.P_aa = self._aux_blocks()
+        self._fresh = False
+        super()._start_interval(P)
+
+    def full_covariance(self) -> np.ndarray:
+        """The (15 + n_aux)-square covariance at the current step."""
+        P = self.covariance
+        P_na, P_aa = self._aux_blocks()
+        full = np.empty((self.n_states, self.n_states))
+        full[:N_STATES, :N_STATES] = P
+        full[:N_STATES, N_STATES:] = P_na
+        full[N_STATES:, :N_STATES] = P_na.T
+        full[N_STATES:, N_STATES:] = P_aa
+        return full
+
+    def update(self, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[float, np.ndarray]:
+        """Closed-loop update on the full state (H (m, 15) or (m, 15 + n_aux))."""
+        H = np.asarray(H, dtype=float)
+        if H.shape[1] == N_STATES:
+            H = np.concatenate([H, np.zeros((H.shape[0], self.n_aux))], axis=1)
+        P = self.full_covariance()
+        try:
+            dx, P_new, nis = joseph_update(P, H, R, innovation)
+        except np.linalg.LinAlgError:
+            self.diverged = True
+            return math.nan, np.zeros(self.n_states)
+        if not np.all(np.isfinite(dx)):
+            self.diverged = True
+            return math.nan, np.zeros(self.n_states)
+        if not self.estimate_biases:
+            dx[BG] = 0.0
+            dx[BA] = 0.0
+        self.state = correct_state(self.state, dx[NAV], self.earth)
+        self.gyro_bias = self.gyro_bias + dx[BG]
+        self.accel_bias = self.accel_bias + dx[BA]
+        self.aux = self.aux - dx[N_STATES:]
+        P_new = self._guard(P_new)
+        self.P_na, self.P_aa = P_new[:N_STATES, N_STATES:].copy(), P_new[N_STATES:, N_STATES:].copy()
+        self._fresh = True
+        self._start_interval(P_new[:N_STATES, :N_STATES].copy())
+        return nis, dx
 
 
 def nis_threshold(dof: int, probability: float = 1e-6) -> float:

@@ -91,6 +91,31 @@ time, against 1.74 m and NEES 215 uncompensated (5 seeds); "fix" update 0.19 m, 
 1.88, 92 %, against 1.44 m. Full scenarios (standalone receiver, 400 s, 2 seeds):
 mountain-railway 0.70 m against 1.67 m, urban-road 0.81 m against 2.21 m.
 
+Wheel odometer (``context.odometer``; option ``odometer``)
+---------------------------------------------------------
+With an odometer the state gains a clone ``s_c`` of the arc length at the last odometer
+update (stochastic cloning) and the odometer scale-factor error ``k``::
+
+    x = [s, v, b, (c_b, c_d), s_c, k]
+    s_c' = 0,   k' = w_k,  q_k = 2 sigma_g^2 / tau_g                          (AT.11)
+
+``k`` starts with the variance ``sigma_c^2 + sigma_g^2`` of the nominal turn-on and
+Gauss-Markov parts and then walks with the Gauss-Markov driving PSD (a random walk: the
+Gauss-Markov variance is reached after ~tau/2 and exceeded later, which is conservative;
+the turn-on part is a constant). Every ``odometer_period_s`` (global step multiples,
+default 1 s) the distance D counted over the interval T updates the state::
+
+    D = (1 + k) (s - s_c) + w,                                               (AT.12)
+    H = [1 + k, 0, 0, (0, 0), -(1 + k), s - s_c],
+    R = q^2 T + p^2 / 6 (+ (slip D)^2 when |v - v_c| / T > 0.9 a_slip)
+
+(q the nominal noise density, p the pulse length: the quantisation error of a span is the
+difference of two carries, uniform on [0, p); v_c the speed at the last update: the
+filter's own acceleration estimate decides whether slip is possible), after which
+``s_c`` and its covariance rows are reset to those of s. Between odometer updates the
+clone is constant, so its rows of Phi are the identity. Without an odometer in the
+context, or with ``odometer="none"``, the filter is the one without these states.
+
 Output
 ------
 Position, tangent, heading, grade and cant come from the track at ``s``; velocity is
@@ -382,10 +407,17 @@ class AlongTrackOptions:
     pseudorange_sigma_m: float | None = None
     doppler_sigma_mps: float | None = None
     lever_arm: str = "auto"
+    odometer: str = "auto"
+    odometer_period_s: float = 1.0
 
     def __post_init__(self):
         if self.lever_arm not in ("auto", "none"):
             raise ConfigError("along-track.lever_arm", "'auto' or 'none'", self.lever_arm)
+        if self.odometer not in ("auto", "none"):
+            raise ConfigError("along-track.odometer", "'auto' or 'none'", self.odometer)
+        if not (isinstance(self.odometer_period_s, (int, float)) and self.odometer_period_s > 0.0
+                and math.isfinite(self.odometer_period_s)):
+            raise ConfigError("along-track.odometer_period_s", "a positive finite time, s", self.odometer_period_s)
         for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
@@ -450,6 +482,11 @@ class AlongTrackFilter:
         "auto": the observables are the antenna's, at ``context.gnss.lever_arm_b_m`` from
         the IMU on the track attitude (AT.8)-(AT.10); "none": the antenna is taken to be
         at the IMU (uncompensated).
+    odometer : {"auto", "none"}
+        "auto": use the wheel odometer when the context has one (AT.11)-(AT.12);
+        "none": ignore it (the filter without odometer, number for number).
+    odometer_period_s : float
+        Interval of the odometer updates, s (rounded to whole navigation steps).
 
     The model, discretisation and measurement equations are in the module docstring.
     """
@@ -478,8 +515,12 @@ class AlongTrackFilter:
             self.clock_states = True
         else:
             self.clock_states = bool(gnss.clock_modelled)
-        n_x = 5 if self.clock_states else 3
-        self.n_x = n_x
+        n_core = 5 if self.clock_states else 3
+        odometer = getattr(context, "odometer", None)
+        self.use_odometer = opt.odometer == "auto" and odometer is not None
+        n_x = n_core + (2 if self.use_odometer else 0)
+        self.n_core, self.n_x = n_core, n_x
+        self.i_clone, self.i_scale = n_core, n_core + 1
         imu = context.imu
         self.tau_b = float(imu.accel_bias_tau_s) if imu.accel_bias_tau_s > 0 else math.inf
         self.q_v = float(imu.accel_vrw) ** 2 + opt.accel_psd_extra
@@ -506,8 +547,20 @@ class AlongTrackFilter:
         P[0, 0] = float(t_n @ cov[:3, :3] @ t_n)
         P[1, 1] = float(t_n @ cov[3:6, 3:6] @ t_n)
         P[2, 2] = sigma_b**2
-        if n_x == 5:
+        if self.clock_states:
             P[3, 3], P[4, 4] = cb_sigma**2, cd_sigma**2
+        if self.use_odometer:  # (AT.11) the clone starts as s itself
+            ic, ik = self.i_clone, self.i_scale
+            x[ic] = s0
+            P[ic, ic] = P[0, ic] = P[ic, 0] = P[0, 0]
+            P[ik, ik] = odometer.scale_factor_sigma**2 + odometer.scale_factor_gm_sigma**2
+            tau_k = float(odometer.scale_factor_tau_s)
+            self.q_k = 2.0 * odometer.scale_factor_gm_sigma**2 / tau_k if math.isfinite(tau_k) else 0.0
+            self.odo_steps = max(1, int(round(opt.odometer_period_s / context.nav_period_s)))
+            self.odo_spec = odometer
+            self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
+            self._odo_v0 = v0
+            self.odo_nis = math.nan
         self.x, self.P = x, P
         # measurement sigmas with a floor (an error-free receiver must not make S singular)
         sigma_pr = opt.pseudorange_sigma_m if opt.pseudorange_sigma_m is not None else gnss.pseudorange_sigma_m
@@ -533,7 +586,7 @@ class AlongTrackFilter:
         F[1, 0] = float(self.table.evaluate(self.x[0], self.table.G_T, 1))  # (AT.2) d g_t / ds
         F[1, 2] = -1.0 if self.options.estimate_bias else 0.0
         F[2, 2] = -1.0 / self.tau_b if math.isfinite(self.tau_b) else 0.0  # (AT.3)
-        if self.n_x == 5:
+        if self.clock_states:
             F[3, 4] = 1.0  # (AT.4)
         self.F = F
         self.P0 = self.P
@@ -543,7 +596,12 @@ class AlongTrackFilter:
         """P(t_0 + k dt) = Phi P0 Phi^T + Q for integer step counts k (array)."""
         tau = np.asarray(k, dtype=float) * self.dt
         phi = _series_expm(self.F * tau[:, None, None])
-        q = _process_noise(tau, self.q_v, self.q_b, self.s_f, self.s_g, self.n_x)
+        q = _process_noise(tau, self.q_v, self.q_b, self.s_f, self.s_g, self.n_core)
+        if self.n_x != self.n_core:  # (AT.11) clone: no noise; scale factor: random walk
+            full = np.zeros(tau.shape + (self.n_x, self.n_x))
+            full[..., :self.n_core, :self.n_core] = q
+            full[..., self.i_scale, self.i_scale] = self.q_k * tau
+            q = full
         P = phi @ self.P0 @ np.swapaxes(phi, -1, -2) + q
         return 0.5 * (P + np.swapaxes(P, -1, -2))
 
@@ -556,7 +614,7 @@ class AlongTrackFilter:
         x[1] = v + dv_y + a * dt  # (AT.6)
         x[0] = s + v * dt + ds2_y + 0.5 * dt * dt * a  # (AT.7)
         x[2] = b * self.decay  # (AT.3) Gauss-Markov mean
-        if self.n_x == 5:
+        if self.clock_states:
             x[3] = x[3] + x[4] * dt  # (AT.4)
 
     @staticmethod
@@ -601,7 +659,7 @@ class AlongTrackFilter:
             H = np.zeros((m, self.n_x))
             H[:, 0] = drho_ds
             pred = rho.copy()
-            if self.n_x == 5:
+            if self.clock_states:
                 H[:, 3] = 1.0
                 pred = pred + x[3]
             rows.append(H)
@@ -611,7 +669,7 @@ class AlongTrackFilter:
                 Hd = np.zeros((m, self.n_x))
                 Hd[:, 0], Hd[:, 1] = drate_ds, drate_dv
                 pred_d = rate.copy()
-                if self.n_x == 5:
+                if self.clock_states:
                     Hd[:, 4] = 1.0
                     pred_d = pred_d + x[4]
                 rows.append(Hd)
@@ -657,6 +715,61 @@ class AlongTrackFilter:
             self.diverged = True
         return nis, dof
 
+    # ------------------------------------------------------------------ odometer
+    def _odometer_due(self, ds, step: int) -> bool:
+        """Accumulate one step's odometer distance; True when an update falls at its end."""
+        if ds is None:
+            self._odo_missing = True
+        else:
+            self._odo_sum += ds
+        self._odo_n += 1
+        return (step + 1) % self.odo_steps == 0
+
+    def _odometer_update(self) -> tuple[float | None, int]:
+        """(AT.12) at the current step, then the clone reset. Returns (nis, dof)."""
+        x, P = self.x, self.P
+        ic, ik = self.i_clone, self.i_scale
+        spec = self.odo_spec
+        nis = None
+        if self._odo_n and not self._odo_missing:
+            T = self._odo_n * self.dt
+            D = self._odo_sum
+            k = float(x[ik])
+            span = float(x[0] - x[ic])
+            H = np.zeros((1, self.n_x))
+            H[0, 0], H[0, ic], H[0, ik] = 1.0 + k, -(1.0 + k), span
+            R = spec.noise_density_m_per_sqrt_s**2 * T + spec.pulse_length_m**2 / 6.0
+            if spec.slip_fraction > 0.0 and abs(float(x[1]) - self._odo_v0) > 0.9 * spec.slip_accel_threshold_mps2 * T:
+                R += (spec.slip_fraction * D) ** 2
+            R = max(R, 1e-12)
+            result = joseph_update(x, P, np.array([D - (1.0 + k) * span]), H, np.array([R]))
+            if result is None:
+                self.diverged = True
+            else:
+                x, P, nis = result
+                self.n_updates += 1
+        # the clone restarts at s (its covariance rows become those of s)
+        x = x.copy()
+        x[ic] = x[0]
+        P = P.copy()
+        P[ic, :] = P[0, :]
+        P[:, ic] = P[:, 0]
+        P[ic, ic] = P[0, 0]
+        self.x, self.P = x, P
+        self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
+        self._odo_v0 = float(x[1])
+        self.odo_nis = math.nan if nis is None else nis
+        return nis, (1 if nis is not None else 0)
+
+    @staticmethod
+    def _sum_nis(nis, dof, nis_o, dof_o):
+        """NIS of sequential updates in one step: the sum (independent innovations)."""
+        if nis_o is None:
+            return nis, dof
+        if nis is None:
+            return nis_o, dof_o
+        return nis + nis_o, dof + dof_o
+
     # ------------------------------------------------------------------ output
     def _outputs(self, s: np.ndarray, v: np.ndarray, P: np.ndarray):
         """Solutions (k, 9) and 9 x 9 covariances (k, 9, 9) from states and covariances."""
@@ -692,22 +805,29 @@ class AlongTrackFilter:
         extra = {"s": float(x[0]), "speed": float(x[1]), "accel_bias": float(x[2]),
                  "sigma_s": math.sqrt(max(self.P[0, 0], 0.0)), "sigma_v": math.sqrt(max(self.P[1, 1], 0.0)),
                  "diverged": self.diverged, "n_updates": self.n_updates}
-        if self.n_x == 5:
+        if self.clock_states:
             extra["clock_bias_m"], extra["clock_drift_mps"] = float(x[3]), float(x[4])
+        if self.use_odometer:
+            extra["odometer_scale"] = float(x[self.i_scale])
+            extra["odometer_nis"] = self.odo_nis
         return extra
 
     # ------------------------------------------------------------------ step
-    def _advance(self, dv_y: float, ds2_y: float, obs, step: int):
+    def _advance(self, dv_y: float, ds2_y: float, obs, step: int, odometer_ds=None):
         """One step: mean, covariance at the step end, optional update. Returns (P, nis, dof)."""
         self._propagate_mean(dv_y, ds2_y)
         self.k_in += 1
         nis, dof = None, 0
-        boundary = obs is not None or (step + 1) % self.cov_steps == 0
+        odo_due = self.use_odometer and self._odometer_due(odometer_ds, step)
+        boundary = obs is not None or (step + 1) % self.cov_steps == 0 or odo_due
         if not boundary:
             return None, nis, dof
         self.P = self._covariance_at(np.array([self.k_in]))[0]
         if obs is not None:
             nis, dof = self._update(obs)
+            self._check_health()
+        if odo_due:
+            nis, dof = self._sum_nis(nis, dof, *self._odometer_update())
             self._check_health()
         self._start_interval()
         return self.P, nis, dof
@@ -715,7 +835,8 @@ class AlongTrackFilter:
     def step(self, measurement: Measurement) -> Estimate:
         """Process one navigation step (see the module docstring for the equations)."""
         dv_y, ds2_y = self._along_increments(np.asarray(measurement.dv_r, dtype=float), self.dt)
-        P, nis, dof = self._advance(float(dv_y), float(ds2_y), measurement.gnss, measurement.step)
+        P, nis, dof = self._advance(float(dv_y), float(ds2_y), measurement.gnss, measurement.step,
+                                    getattr(measurement, "odometer_ds_m", None))
         if P is None:
             P = self._covariance_at(np.array([self.k_in]))[0]
         self.t = measurement.t
@@ -741,7 +862,11 @@ class AlongTrackFilter:
         pending: list[int] = []  # steps of the current interval whose P is computed in one go
         pending_k: list[int] = []
         gravity_along = self.table.gravity_along
-        dt, decay, clock = self.dt, self.decay, self.n_x == 5
+        dt, decay, clock = self.dt, self.decay, self.clock_states
+        odo = self.use_odometer
+        if odo:
+            odo_ds = getattr(batch, "odometer_ds_m", None)
+            odo_ds = [None] * n if odo_ds is None else np.asarray(odo_ds, dtype=float).tolist()
         half_dt, half_dt2 = 0.5 * dt, 0.5 * dt * dt
         x = self.x
         s, v, b = float(x[0]), float(x[1]), float(x[2])
@@ -758,7 +883,8 @@ class AlongTrackFilter:
             pending.append(i)
             pending_k.append(self.k_in)
             obs = epochs.get(i)
-            if obs is None and (steps[i] + 1) % self.cov_steps != 0:
+            odo_due = odo and self._odometer_due(odo_ds[i], steps[i])
+            if obs is None and not odo_due and (steps[i] + 1) % self.cov_steps != 0:
                 continue
             x[0], x[1], x[2] = s, v, b
             if clock:
@@ -775,6 +901,18 @@ class AlongTrackFilter:
                     nis_out[i], dof_out[i] = nis, dof
                     P_out[i] = self.P
                     s_out[i], v_out[i] = x[0], x[1]
+                s, v, b = float(x[0]), float(x[1]), float(x[2])
+                if clock:
+                    cb, cd = float(x[3]), float(x[4])
+            if odo_due:
+                nis_o, dof_o = self._odometer_update()
+                self._check_health()
+                x = self.x
+                if nis_o is not None:
+                    prev = None if math.isnan(nis_out[i]) else float(nis_out[i])
+                    nis_out[i], dof_out[i] = self._sum_nis(prev, int(dof_out[i]), nis_o, dof_o)
+                    s_out[i], v_out[i] = x[0], x[1]
+                P_out[i] = self.P
                 s, v, b = float(x[0]), float(x[1]), float(x[2])
                 if clock:
                     cb, cd = float(x[3]), float(x[4])

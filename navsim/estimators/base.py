@@ -13,6 +13,9 @@ simulator's actual error draws), and the prior (initial estimate and covariance 
 by the simulator from the scenario's initial uncertainty). ``step`` is called once per
 navigation step with the IMU data of that step and, at GNSS epochs, the GNSS channels;
 it returns the navigation solution at the end of the step. Truth is never passed in.
+When the scenario has a wheel odometer, the context carries its nominal specification
+(:class:`NominalOdometer`) and every measurement the distance it counted over the step
+(``odometer_ds_m``); both are None otherwise.
 
 Frames and units follow the package conventions (:mod:`navsim`): geodetic latitude,
 longitude (rad) and height (m); ENU velocity (m/s); heading, pitch, roll (rad) of the
@@ -36,6 +39,7 @@ import numpy as np
 __all__ = [
     "NominalImu",
     "NominalGnss",
+    "NominalOdometer",
     "Context",
     "GnssObservation",
     "Measurement",
@@ -112,6 +116,30 @@ class NominalGnss:
     lever_arm_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+@dataclass(frozen=True, slots=True)
+class NominalOdometer:
+    """The wheel-odometer specification an estimator is told (1-sigma, datasheet values).
+
+    pulse_length_m : distance per encoder pulse, m (0: no quantiser); the counted
+    distance of a span is within one pulse of the rolled one, so a span's quantisation
+    error has variance ``p^2 / 6`` (two independent residuals, uniform on [0, p)).
+    scale_factor_sigma : turn-on scale-factor uncertainty (wheel diameter), dimensionless.
+    scale_factor_gm_sigma, scale_factor_tau_s : slowly varying scale-factor part (wear,
+    adhesion): stationary sigma and correlation time, s. noise_density_m_per_sqrt_s :
+    white distance noise, m/sqrt(s). slip_fraction : largest over-/under-read in
+    traction/braking above ``slip_accel_threshold_mps2`` (m/s^2; inf: no slip).
+    The odometer measures at the IMU's position along the body forward (y) axis.
+    """
+
+    pulse_length_m: float = 0.0
+    scale_factor_sigma: float = 0.0
+    scale_factor_gm_sigma: float = 0.0
+    scale_factor_tau_s: float = 600.0
+    noise_density_m_per_sqrt_s: float = 0.0
+    slip_fraction: float = 0.0
+    slip_accel_threshold_mps2: float = float("inf")
+
+
 @dataclass(frozen=True)
 class Context:
     """Everything an estimator may know before the episode starts.
@@ -125,6 +153,7 @@ class Context:
     orders : multiple-integral orders R in each measurement.
     imu : NominalImu. gnss : NominalGnss.
     scenario_name : str. config_hash : str, for logs.
+    odometer : NominalOdometer or None (no wheel odometer).
     """
 
     track: object
@@ -138,6 +167,7 @@ class Context:
     gnss: NominalGnss
     scenario_name: str = ""
     config_hash: str = ""
+    odometer: NominalOdometer | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,6 +194,8 @@ class Measurement:
     dtheta_r, dv_r : (R, 3) multiple-integral increments over the step (seed 000 eq.
     1.14). dtheta_sub, dv_sub : (m, 3) first-order increments of the m IMU samples in the
     step. gnss : the epoch at the step end, or None when no epoch falls there.
+    odometer_ds_m : distance counted by the wheel odometer over the step, m (None: no
+    odometer).
     """
 
     step: int
@@ -174,6 +206,7 @@ class Measurement:
     dtheta_sub: np.ndarray
     dv_sub: np.ndarray
     gnss: GnssObservation | None = None
+    odometer_ds_m: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -209,7 +242,8 @@ class MeasurementBatch:
 
     Arrays are those of :class:`Measurement` with a leading step axis: step, t (n,);
     dtheta_r, dv_r (n, R, 3); dtheta_sub, dv_sub (n, m, 3). ``gnss`` lists the epochs
-    as ``(index_in_batch, GnssObservation)`` pairs, in time order.
+    as ``(index_in_batch, GnssObservation)`` pairs, in time order. ``odometer_ds_m``
+    (n,): the odometer distance of each step, m, or None.
     """
 
     step: np.ndarray
@@ -220,6 +254,7 @@ class MeasurementBatch:
     dtheta_sub: np.ndarray
     dv_sub: np.ndarray
     gnss: tuple
+    odometer_ds_m: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -227,8 +262,9 @@ class MeasurementBatch:
     def measurement(self, i: int) -> Measurement:
         """The i-th step as a :class:`Measurement`."""
         epoch = next((obs for j, obs in self.gnss if j == i), None)
+        odometer = None if self.odometer_ds_m is None else float(self.odometer_ds_m[i])
         return Measurement(int(self.step[i]), float(self.t[i]), self.dt, self.dtheta_r[i], self.dv_r[i],
-                           self.dtheta_sub[i], self.dv_sub[i], epoch)
+                           self.dtheta_sub[i], self.dv_sub[i], epoch, odometer)
 
 
 @dataclass(frozen=True, slots=True)

@@ -44,6 +44,36 @@ horizontal RMS after 20 s): compensated 0.26 m, mean NEES 9.1, per-second means 
 (standalone receiver, 400 s, 2 seeds) 1.24 m compensated (the same as with the antenna at
 the IMU) against 1.73 m uncompensated.
 
+Wheel odometer and non-holonomic constraint (``context.odometer``; option ``odometer``)
+---------------------------------------------------------------------------------
+With an odometer the error state gains the odometer scale-factor error ``dk`` (estimate
+minus truth; :class:`~navsim.estimators._inserror.AuxStateIns`: a random walk of PSD
+``2 sigma_g^2 / tau_g`` from the initial variance ``sigma_c^2 + sigma_g^2`` of the nominal
+turn-on and Gauss-Markov parts). Every ``odometer_period_s`` (whole navigation steps at
+global step multiples; default 1 s) the distance D counted over the interval T and the
+mean body velocity of the INS over the same steps, ``vb = mean_k C_k^T v_k``, give::
+
+    y_fwd = (1 + k) vb_y - D / T,      H_fwd = (1 + k) J_y + vb_y e_k           (LC.3)
+    y_x   = vb_x,  y_z = vb_z,         H_x = J_x,  H_z = J_z                    (LC.4)
+
+(:func:`~navsim.estimators._inserror.body_velocity_terms` (OD.6): ``J = [0, C^T,
+C^T [v x], 0, 0]`` at the update step). (LC.3) is the forward speed the wheel measured;
+(LC.4) the non-holonomic constraint: a vehicle on its wheels (on rails) does not move
+sideways or vertically in its body frame (Groves 2013, section 16.2.3), ``R_nhc =
+nhc_sigma_mps^2`` per axis (default 0.05 m/s: body oscillations tilt the forward axis).
+``R_fwd = (q^2 T + p^2 / 6 (+ (slip D)^2 while the INS forward speed changed by more than
+0.9 a_slip T)) / T^2`` with q the nominal noise density and p the pulse length (the
+quantisation error of a span is a difference of two carries uniform on [0, p)). The
+odometer is taken to sit at the IMU. D / T and vb are means over the interval, so their
+error is that of its middle: the rows of J are taken through ``x(t - T/2) = (I - F T/2)
+x(t)`` (LC.5), F the error dynamics of the engine's current covariance interval (with a
+0.2 deg tilt the velocity error changes by ~0.03 m/s within 1 s, five times the forward
+sigma of the rail tachometer, so the end-of-interval error is not good enough). A GNSS
+update inside an odometer interval removes its correction from the INS velocities
+already summed.
+``odometer="none"``, or no odometer in the context, is the filter without these terms,
+number for number.
+
 Process noise: :meth:`ImuNoise.from_nominal` (ARW, VRW, Gauss-Markov biases with the
 nominal sigma and correlation time, rate random walk). Update in Joseph form, covariance
 symmetrised and guarded; a divergence becomes ``extra["diverged"]`` (and the attribute
@@ -64,6 +94,8 @@ References
        measurement model).
 .. [2] Bar-Shalom Y., Li X.R., Kirubarajan T., Estimation with Applications to Tracking
        and Navigation, 2001, section 5.4 (NIS consistency test).
+.. [3] Groves (2013) [1], sections 6.3 (odometers) and 16.2.3 (odometer and
+       non-holonomic-constraint aiding of an INS).
 """
 
 from __future__ import annotations
@@ -75,8 +107,17 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..sensors.gnss import least_squares_fix, velocity_fix
-from ..rotations import quat_to_mat
-from ._inserror import NAV, N_STATES, ErrorStateIns, ImuNoise, lever_arm_terms, nis_threshold
+from ..rotations import mat_nb_from_hpr, quat_to_mat
+from ._inserror import (
+    NAV,
+    N_STATES,
+    AuxStateIns,
+    ErrorStateIns,
+    ImuNoise,
+    body_velocity_terms,
+    lever_arm_terms,
+    nis_threshold,
+)
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = ["LooselyCoupledEkf", "gnss_fixes"]
@@ -135,6 +176,16 @@ class LooselyCoupledEkf:
     lever_arm : {"auto", "none"}
         "auto": compensate the antenna lever arm of ``context.gnss.lever_arm_b_m``
         (LC.1)-(LC.2); "none": take the antenna to be at the IMU (uncompensated).
+    odometer : {"auto", "none"}
+        "auto": with an odometer in the context, the forward-speed update (LC.3) and the
+        non-holonomic constraint (LC.4) with a scale-factor state; "none": today's
+        filter, number for number.
+    odometer_period_s : float
+        Interval of the odometer updates, s (rounded to whole navigation steps).
+    nhc : bool
+        Apply the non-holonomic constraint with the odometer updates (default True).
+    nhc_sigma_mps : float
+        Its 1-sigma per axis, m/s.
 
     Attributes
     ----------
@@ -144,7 +195,9 @@ class LooselyCoupledEkf:
     def __init__(self, use_velocity: bool = True, min_satellites: int = 4, noise_scale: float = 1.0,
                  bias_scale: float = 1.0, measurement_scale: float = 1.0, covariance_period_s: float | None = None,
                  divergence_probability: float = 1e-6, divergence_epochs: int = 10, coning: str | None = None,
-                 sculling: str | None = None, position: str | None = None, lever_arm: str = "auto") -> None:
+                 sculling: str | None = None, position: str | None = None, lever_arm: str = "auto",
+                 odometer: str = "auto", odometer_period_s: float = 1.0, nhc: bool = True,
+                 nhc_sigma_mps: float = 0.05) -> None:
         if int(min_satellites) != min_satellites or min_satellites < 4:
             raise ConfigError("min_satellites", "an integer >= 4", min_satellites)
         if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
@@ -158,6 +211,15 @@ class LooselyCoupledEkf:
         if lever_arm not in ("auto", "none"):
             raise ConfigError("lever_arm", "'auto' or 'none'", lever_arm)
         self.lever_arm = lever_arm
+        if odometer not in ("auto", "none"):
+            raise ConfigError("odometer", "'auto' or 'none'", odometer)
+        for name, value in (("odometer_period_s", odometer_period_s), ("nhc_sigma_mps", nhc_sigma_mps)):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
+                raise ConfigError(name, "a positive finite number", value)
+        self.odometer = odometer
+        self.odometer_period_s = float(odometer_period_s)
+        self.nhc = bool(nhc)
+        self.nhc_sigma_mps = float(nhc_sigma_mps)
         self.use_velocity = bool(use_velocity)
         self.min_satellites = int(min_satellites)
         self.noise_scale, self.bias_scale = noise_scale, bias_scale
@@ -176,7 +238,21 @@ class LooselyCoupledEkf:
         noise = ImuNoise.from_nominal(context.imu, noise_scale=self.noise_scale, bias_scale=self.bias_scale)
         period = self.covariance_period_s or min(context.gnss_period_s, 1.0)
         steps = max(1, round(period / context.nav_period_s))
-        self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
+        spec = getattr(context, "odometer", None)
+        self._odo = spec if self.odometer == "auto" else None
+        if self._odo is None:
+            self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
+        else:  # one auxiliary state: the odometer scale-factor error
+            tau = float(spec.scale_factor_tau_s)
+            psd = 2.0 * spec.scale_factor_gm_sigma**2 / tau if math.isfinite(tau) else 0.0
+            self.engine = AuxStateIns(context, prior, noise, interval_steps=steps, **self.methods,
+                                      aux_variance=[spec.scale_factor_sigma**2 + spec.scale_factor_gm_sigma**2],
+                                      aux_psd=[psd])
+            self._odo_steps = max(1, round(self.odometer_period_s / context.nav_period_s))
+            self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
+            self._odo_vb = np.zeros(3)
+            self._odo_v0 = None  # INS forward speed at the last odometer update
+            self.odometer_nis = math.nan
         self.sigma_pos = self.measurement_scale * context.gnss.pseudorange_sigma_m
         self.sigma_vel = self.measurement_scale * context.gnss.doppler_sigma_mps
         dof = 6 if self.use_velocity else 3
@@ -193,12 +269,16 @@ class LooselyCoupledEkf:
         """One navigation step (the batch path on a batch of one)."""
         m = measurement
         gnss = ((0, m.gnss),) if m.gnss is not None else ()
+        odo = getattr(m, "odometer_ds_m", None)
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
-            m.dtheta_sub[None], m.dv_sub[None], gnss))
+            m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo])))
         row = out.solution[0]
         eng = self.engine
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+        if self._odo is not None:
+            extra["odometer_scale"] = float(eng.aux[0])
+            extra["odometer_nis"] = self.odometer_nis
         if m.gnss is not None:
             extra["n_valid"] = self.last_update.get("n_valid", 0)
         nis = None if math.isnan(out.nis[0]) else float(out.nis[0])
@@ -220,25 +300,45 @@ class LooselyCoupledEkf:
         ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
                                                                  self._initial_e)
         body = eng.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)
+        # update steps: the epochs with a fix (missing data is a value: an epoch without
+        # one is just INS) and, with an odometer, the ends of the odometer intervals
+        events = {index: e for e, (index, _) in enumerate(epochs) if ok[e]}
+        odo_due = ()
+        if self._odo is not None:
+            steps = np.asarray(batch.step)
+            odo_due = set(np.flatnonzero((steps + 1) % self._odo_steps == 0).tolist())
+            odo_ds = getattr(batch, "odometer_ds_m", None)
+            events.update({i: None for i in odo_due if i not in events})
         start = 0
-        for e, (index, _) in enumerate(epochs):
-            if not ok[e]:
-                continue  # missing data is a value: this epoch is just INS
+        for index in sorted(events):
+            e = events[index]
             stop = index + 1
             if stop > start:
                 rows, cov = eng.advance_body(body, start, stop)
                 solution[start:stop], covariance[start:stop] = rows, cov
-            # mean compensated body rate over the epoch's step (for the lever-arm velocity)
-            omega_ib_b = body.dtheta1[index] / eng.dt - eng.gyro_bias if self._with_lever else None
-            value, dof = self._update(pos_e[e], cov_pos[e], vel_e[e], cov_vel[e], omega_ib_b)
-            self.last_update = {"index": index, "n_valid": int(n_valid[e]), "nis": value}
-            nis[index], nis_dof[index] = value, dof
+                if self._odo is not None:
+                    self._odometer_accumulate(rows, odo_ds, start, stop)
+            if e is not None:
+                # mean compensated body rate over the epoch's step (for the lever-arm velocity)
+                omega_ib_b = body.dtheta1[index] / eng.dt - eng.gyro_bias if self._with_lever else None
+                value, dof = self._update(pos_e[e], cov_pos[e], vel_e[e], cov_vel[e], omega_ib_b)
+                self.last_update = {"index": index, "n_valid": int(n_valid[e]), "nis": value}
+                nis[index], nis_dof[index] = value, dof
+            if index in odo_due:
+                value, dof = self._odometer_update()
+                if dof:
+                    if nis_dof[index]:  # sequential updates in one step: the NIS add up
+                        nis[index], nis_dof[index] = nis[index] + value, nis_dof[index] + dof
+                    else:
+                        nis[index], nis_dof[index] = value, dof
             solution[index] = eng.current_row()
             covariance[index] = eng.covariance[NAV, NAV]
             start = stop
         if start < n:
             rows, cov = eng.advance_body(body, start)
             solution[start:], covariance[start:] = rows, cov
+            if self._odo is not None:
+                self._odometer_accumulate(rows, odo_ds, start, n)
         self.diverged = self.diverged or eng.diverged
         return EstimateBatch(solution, covariance, nis, nis_dof)
 
@@ -272,13 +372,72 @@ class LooselyCoupledEkf:
             if self._with_lever:
                 H = L[:3]
             R, y = R_pos, y_pos
-        value, _ = eng.update(H, 0.5 * (R + R.T), y)
+        value, dx = eng.update(H, 0.5 * (R + R.T), y)
+        if self._odo is not None and self._odo_n:
+            # the INS rows already summed for the odometer carry the error just removed:
+            # remove it from them too (first order, as if constant over the interval)
+            st = eng.state
+            self._odo_vb = self._odo_vb - self._odo_n * (
+                body_velocity_terms(quat_to_mat(st.quat_nb), st.velocity_n)[1] @ dx[:N_STATES])
         if not math.isfinite(value) or value > self._nis_limit:
             self._failed += 1
         else:
             self._failed = 0
         if self._failed >= self.divergence_epochs:
             self.diverged = True
+        return value, len(y)
+
+    # ------------------------------------------------------------------------ odometer
+    def _odometer_accumulate(self, rows, odo_ds, start: int, stop: int) -> None:
+        """Add the INS body velocities C_k^T v_k and the odometer distances of steps start:stop."""
+        mats = mat_nb_from_hpr(rows[:, 6], rows[:, 7], rows[:, 8])
+        self._odo_vb = self._odo_vb + np.einsum("kji,kj->i", mats, rows[:, 3:6])
+        self._odo_n += stop - start
+        if odo_ds is None:
+            self._odo_missing = True
+        else:
+            self._odo_sum += float(np.sum(odo_ds[start:stop]))
+
+    def _odometer_update(self) -> tuple[float, int]:
+        """(LC.3)-(LC.4) at the current step; returns (nis, dof) (dof 0: no update)."""
+        eng = self.engine
+        spec = self._odo
+        count, missing = self._odo_n, self._odo_missing
+        vb_mean = self._odo_vb / max(count, 1)
+        D = self._odo_sum
+        self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
+        self._odo_vb = np.zeros(3)
+        st = eng.state
+        C = quat_to_mat(st.quat_nb)
+        vb_now, J = body_velocity_terms(C, st.velocity_n)
+        v0, self._odo_v0 = self._odo_v0, float(vb_now[1])
+        if count == 0 or missing:
+            self.odometer_nis = math.nan
+            return math.nan, 0
+        T = count * eng.dt
+        k = float(eng.aux[0])
+        var_fwd = spec.noise_density_m_per_sqrt_s**2 * T + spec.pulse_length_m**2 / 6.0
+        if spec.slip_fraction > 0.0 and v0 is not None \
+                and abs(float(vb_now[1]) - v0) > 0.9 * spec.slip_accel_threshold_mps2 * T:
+            var_fwd += (spec.slip_fraction * D) ** 2
+        rows = [1, 0, 2] if self.nhc else [1]
+        # the measured quantities are means over the interval, whose error is that of its
+        # middle: x(t - T/2) = (I - F T/2) x(t) to first order                    (LC.5)
+        J = J - (0.5 * T) * (J @ eng.dynamics)
+        H = np.zeros((len(rows), eng.n_states))
+        H[:, :N_STATES] = J[rows]
+        H[0, :N_STATES] *= 1.0 + k  # (LC.3)
+        H[0, N_STATES] = vb_mean[1]
+        y = np.empty(len(rows))
+        y[0] = (1.0 + k) * vb_mean[1] - D / T
+        R = np.zeros((len(rows), len(rows)))
+        R[0, 0] = max(var_fwd, 1e-12) / (T * T)
+        if self.nhc:  # (LC.4)
+            y[1], y[2] = vb_mean[0], vb_mean[2]
+            R[1, 1] = R[2, 2] = self.nhc_sigma_mps**2
+        value, _ = eng.update(H, R, y)
+        self._odo_v0 = float(body_velocity_terms(quat_to_mat(eng.state.quat_nb), eng.state.velocity_n)[0][1])
+        self.odometer_nis = value
         return value, len(y)
 
     @property
