@@ -98,7 +98,8 @@ class EstimatorAgent:
         self._step = 0
 
     def measurement(self, obs: dict):
-        """The :class:`~navsim.estimators.base.Measurement` of one observation."""
+        """The :class:`~navsim.estimators.base.Measurement` of one observation (with the
+        wheel-odometer distance when the observation has ``odometer_ds``)."""
         from navsim.estimators.base import GnssObservation, Measurement
 
         t = float(obs["t"][0])
@@ -109,9 +110,11 @@ class EstimatorAgent:
                 pseudorange_m=obs["pseudorange_m"], pseudorange_rate_mps=obs["pseudorange_rate_mps"],
                 valid=np.asarray(obs["gnss_valid"], dtype=bool),
             )
+        odometer = obs.get("odometer_ds")
         m = Measurement(step=self._step, t=t, dt=self._dt, dtheta_r=obs["dtheta_r"].reshape(-1, 3),
                         dv_r=obs["dv_r"].reshape(-1, 3), dtheta_sub=obs["dtheta_sub"].reshape(-1, 3),
-                        dv_sub=obs["dv_sub"].reshape(-1, 3), gnss=gnss)
+                        dv_sub=obs["dv_sub"].reshape(-1, 3), gnss=gnss,
+                        odometer_ds_m=None if odometer is None else float(odometer[0]))
         self._step += 1
         return m
 

@@ -50,6 +50,8 @@ class PreparedChunk:
         Per step, the receiver-outage flag and the count of valid channels of the latest
         epoch at or before the step (held between epochs; carried across chunks).
     chunk : the simulator's Chunk.
+    odometer_ds : read-only (n, 1) or None
+        The wheel-odometer distance of each step, m (None without an odometer).
     """
 
     n: int
@@ -73,6 +75,7 @@ class PreparedChunk:
     last_outage: bool
     last_n_valid: int
     chunk: object
+    odometer_ds: np.ndarray | None = None
 
 
 def chunk_truth_table(chunk, earth) -> tuple[np.ndarray, np.ndarray]:
@@ -159,6 +162,7 @@ def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: in
         sat_pos_e=gnss[2], sat_vel_e=gnss[3], truth=truth, truth_rows=truth.tolist() if rows else [],
         receiver_outage=outage.astype(bool).tolist(), n_valid=n_valid.astype(int).tolist(),
         last_outage=last_outage, last_n_valid=last_n_valid, chunk=chunk,
+        odometer_ds=None if getattr(chunk, "odometer", None) is None else _frozen(chunk.odometer.ds_m[:, None]),
     )
 
 

@@ -10,7 +10,9 @@ physics of its own, and truth never enters the observation.
 
 ## Observation space
 A :class:`gymnasium.spaces.Dict` of float64 boxes with finite bounds; see
-:mod:`navsim.envs.spaces` for the table. ``FlattenObservation`` works.
+:mod:`navsim.envs.spaces` for the table. ``FlattenObservation`` works. With a wheel
+odometer in the scenario (``odometer={"enabled": True}``) the key ``odometer_ds`` (the
+distance counted over the step, m) is added.
 
 ## Action space
 ``Box(-1, 1, (9,))``: the solution ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]``
@@ -87,7 +89,8 @@ from .spaces import ACTION_SCALE, action_space, observation_space
 
 __all__ = ["NavigationEnv", "resolve_scenario", "SCENARIO_SECTIONS"]
 
-SCENARIO_SECTIONS = ("name", "description", "earth", "timing", "track", "motion", "imu", "gnss", "outages", "initial")
+SCENARIO_SECTIONS = ("name", "description", "earth", "timing", "track", "motion", "imu", "gnss", "outages", "initial",
+                     "odometer")
 _TWO_PI = 2.0 * math.pi
 
 
@@ -180,7 +183,8 @@ class NavigationEnv(gym.Env):
         timing = self.scenario.timing
         self.n_steps = timing.steps
         k = len(self.prn)
-        self.observation_space = observation_space(timing, self.scenario.imu.orders, k)
+        self._odometer = bool(self.scenario.odometer.enabled)
+        self.observation_space = observation_space(timing, self.scenario.imu.orders, k, odometer=self._odometer)
         self.physical_action = bool(physical_action)
         self.action_space = action_space(self.physical_action)
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()
@@ -191,6 +195,8 @@ class NavigationEnv(gym.Env):
                               "gnss_new_epoch": np.zeros(1, dtype=np.int8), "gnss_valid": np.zeros(k, dtype=np.int8),
                               "pseudorange_m": np.zeros(k), "pseudorange_rate_mps": np.zeros(k),
                               "sat_pos_e": np.zeros(3 * k), "sat_vel_e": np.zeros(3 * k)}
+        if self._odometer:
+            self._terminal_obs["odometer_ds"] = np.zeros(1)
         self._config = {"scenario": self.scenario.name, "config_hash": self.scenario.config_hash(),
                         "scenario_toml": self.scenario.to_toml()}
         self._pc: PreparedChunk | None = None
@@ -234,10 +240,13 @@ class NavigationEnv(gym.Env):
 
     def _obs(self, i: int) -> dict:
         pc = self._pc
-        return {"t": pc.t[i], "dtheta_r": pc.dtheta_r[i], "dv_r": pc.dv_r[i], "dtheta_sub": pc.dtheta_sub[i],
-                "dv_sub": pc.dv_sub[i], "gnss_new_epoch": pc.new_epoch[i], "gnss_valid": pc.valid[i],
-                "pseudorange_m": pc.pseudorange_m[i], "pseudorange_rate_mps": pc.pseudorange_rate_mps[i],
-                "sat_pos_e": pc.sat_pos_e[i], "sat_vel_e": pc.sat_vel_e[i]}
+        obs = {"t": pc.t[i], "dtheta_r": pc.dtheta_r[i], "dv_r": pc.dv_r[i], "dtheta_sub": pc.dtheta_sub[i],
+               "dv_sub": pc.dv_sub[i], "gnss_new_epoch": pc.new_epoch[i], "gnss_valid": pc.valid[i],
+               "pseudorange_m": pc.pseudorange_m[i], "pseudorange_rate_mps": pc.pseudorange_rate_mps[i],
+               "sat_pos_e": pc.sat_pos_e[i], "sat_vel_e": pc.sat_vel_e[i]}
+        if pc.odometer_ds is not None:
+            obs["odometer_ds"] = pc.odometer_ds[i]
+        return obs
 
     def _step_info(self, i: int) -> dict:
         pc = self._pc

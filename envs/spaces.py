@@ -18,6 +18,8 @@ key                         shape          meaning
 ``pseudorange_rate_mps``    (k,)           Doppler as pseudorange rate, m/s
 ``sat_pos_e``               (3k,)          satellite ECEF position, m
 ``sat_vel_e``               (3k,)          satellite ECEF velocity, m/s
+``odometer_ds``             (1,)           wheel-odometer distance over the step, m (only
+                                           when the scenario has ``[odometer] enabled``)
 ==========================  =============  =====================================================
 
 Vectors are flattened row by row (``obs["dtheta_r"].reshape(R, 3)`` gives the (R, 3)
@@ -50,7 +52,7 @@ import numpy as np
 from gymnasium import spaces
 
 __all__ = ["ACTION_SCALE", "solution_to_action", "action_to_solution", "MAX_RATE_RAD_S", "MAX_FORCE_MPS2", "MAX_RANGE_M", "MAX_RANGE_RATE_MPS", "MAX_SAT_SPEED_MPS",
-           "ACTION_LABELS", "observation_space", "action_space", "OBS_KEYS"]
+           "MAX_WHEEL_SPEED_MPS", "ACTION_LABELS", "observation_space", "action_space", "OBS_KEYS", "ODOMETER_KEY"]
 
 MAX_RATE_RAD_S = 50.0
 """Bound of the angular rate, rad/s (above the range of consumer MEMS gyros, about 35 rad/s)."""
@@ -62,11 +64,16 @@ MAX_RANGE_RATE_MPS = 1.0e5
 """Bound of pseudorange rates, m/s (satellite speeds about 4e3 m/s plus the clock drift)."""
 MAX_SAT_SPEED_MPS = 1.0e4
 """Bound of satellite ECEF velocity components, m/s."""
+MAX_WHEEL_SPEED_MPS = 500.0
+"""Bound of the wheel speed, m/s: the odometer distance of a step is within +-500 dt m
+(above any rail or road vehicle, with room for scale-factor and slip errors)."""
 
 ACTION_LABELS = ("lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "roll")
 
 OBS_KEYS = ("t", "dtheta_r", "dv_r", "dtheta_sub", "dv_sub", "gnss_new_epoch", "gnss_valid",
             "pseudorange_m", "pseudorange_rate_mps", "sat_pos_e", "sat_vel_e")
+"""Keys of every observation; :data:`ODOMETER_KEY` is added with an odometer."""
+ODOMETER_KEY = "odometer_ds"
 
 
 def _integral_bounds(bound: float, span: float, orders: int) -> np.ndarray:
@@ -81,7 +88,7 @@ def _box(high: np.ndarray) -> spaces.Box:
     return spaces.Box(low=-high, high=high, dtype=np.float64)
 
 
-def observation_space(timing, orders: int, n_sats: int) -> spaces.Dict:
+def observation_space(timing, orders: int, n_sats: int, odometer: bool = False) -> spaces.Dict:
     """The Dict observation space of a scenario's time base (see the module table).
 
     Parameters
@@ -91,9 +98,11 @@ def observation_space(timing, orders: int, n_sats: int) -> spaces.Dict:
         Multiple-integral orders R.
     n_sats : int
         Channels k (satellites of the constellation).
+    odometer : bool
+        Add the ``odometer_ds`` entry (the scenario has a wheel odometer).
     """
     dt, h, m = timing.nav_period_s, timing.imu_period_s, timing.samples_per_step
-    return spaces.Dict({
+    entries = {
         "t": spaces.Box(0.0, float(timing.duration_s), shape=(1,), dtype=np.float64),
         "dtheta_r": _box(_integral_bounds(MAX_RATE_RAD_S, dt, orders).ravel()),
         "dv_r": _box(_integral_bounds(MAX_FORCE_MPS2, dt, orders).ravel()),
@@ -105,7 +114,10 @@ def observation_space(timing, orders: int, n_sats: int) -> spaces.Dict:
         "pseudorange_rate_mps": _box(np.full(n_sats, MAX_RANGE_RATE_MPS)),
         "sat_pos_e": _box(np.full(3 * n_sats, MAX_RANGE_M)),
         "sat_vel_e": _box(np.full(3 * n_sats, MAX_SAT_SPEED_MPS)),
-    })
+    }
+    if odometer:
+        entries[ODOMETER_KEY] = _box(np.full(1, MAX_WHEEL_SPEED_MPS * dt))
+    return spaces.Dict(entries)
 
 
 ACTION_SCALE = np.array([2.0, 4.0, 2.0**17, 2.0**10, 2.0**10, 2.0**10, 8.0, 2.0, 4.0])

@@ -114,7 +114,9 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         timing = self.scenario.timing
         self.n_steps = timing.steps
         self.n_sats = len(self.prn)
-        self.single_observation_space = observation_space(timing, self.scenario.imu.orders, self.n_sats)
+        self._has_odometer = bool(self.scenario.odometer.enabled)
+        self.single_observation_space = observation_space(timing, self.scenario.imu.orders, self.n_sats,
+                                                          odometer=self._has_odometer)
         self.single_action_space = action_space(self.physical_action)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -198,6 +200,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self._dv_r = _frozen(imu.dv_r.reshape(n_env, c, -1))
         self._dtheta_sub = _frozen(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))
         self._dv_sub = _frozen(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))
+        if self._has_odometer:
+            self._odometer_ds = _frozen(chunk.odometer.ds_m.reshape(n_env, c, 1))
         g = chunk.gnss
         n_valid_epoch = g.valid.sum(axis=2) if g is not None else np.zeros((n_env, 0), dtype=np.int64)
         outage, n_valid = held_flags(epoch_at, chunk.receiver_outage, n_valid_epoch, *self._held)
@@ -223,9 +227,12 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             gnss = {"gnss_valid": self._valid[:, j], "pseudorange_m": self._pr[:, j],
                     "pseudorange_rate_mps": self._prr[:, j], "sat_pos_e": self._sat_pos[j],
                     "sat_vel_e": self._sat_vel[j]}
-        return {"t": self._t[i], "dtheta_r": self._dtheta_r[:, i], "dv_r": self._dv_r[:, i],
-                "dtheta_sub": self._dtheta_sub[:, i], "dv_sub": self._dv_sub[:, i], "gnss_new_epoch": self._new_epoch[i],
-                **gnss}
+        obs = {"t": self._t[i], "dtheta_r": self._dtheta_r[:, i], "dv_r": self._dv_r[:, i],
+               "dtheta_sub": self._dtheta_sub[:, i], "dv_sub": self._dv_sub[:, i], "gnss_new_epoch": self._new_epoch[i],
+               **gnss}
+        if self._has_odometer:
+            obs["odometer_ds"] = self._odometer_ds[:, i]
+        return obs
 
     def _step_info(self, i: int) -> dict:
         info = {"receiver_outage": self._outage[i], "_receiver_outage": self._ones,

@@ -25,14 +25,19 @@ def _same(a: dict, b: dict) -> bool:
     return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
 
 
-def test_native_vector_equals_single_envs_over_two_episodes():
-    """Sub-env j is the single env with seed + j, through an autoreset (NEXT_STEP)."""
+@pytest.mark.parametrize("extra", [{}, {"odometer": {"enabled": True, "preset": "rail-tachometer"}}],
+                         ids=["imu-gnss", "odometer"])
+def test_native_vector_equals_single_envs_over_two_episodes(extra):
+    """Sub-env j is the single env with seed + j, through an autoreset (NEXT_STEP);
+    with a wheel odometer the observations carry ``odometer_ds`` too."""
     n = 3
+    over = {**OVER, **extra}
     venv = gym.make_vec("navsim/MountainRailway-v0", num_envs=n, vectorization_mode="vector_entry_point",
-                        chunk_steps=130, reward_weights=(1.0, 0.5, 2.0), **OVER)
+                        chunk_steps=130, reward_weights=(1.0, 0.5, 2.0), **over)
     assert isinstance(venv.unwrapped, NavigationVectorEnv)
-    singles = [gym.make("navsim/MountainRailway-v0", reward_weights=(1.0, 0.5, 2.0), **OVER) for _ in range(n)]
+    singles = [gym.make("navsim/MountainRailway-v0", reward_weights=(1.0, 0.5, 2.0), **over) for _ in range(n)]
     obs_v, info_v = venv.reset(seed=20)
+    assert ("odometer_ds" in obs_v) == bool(extra)
     outs = [env.reset(seed=20 + j) for j, env in enumerate(singles)]
     assert venv.observation_space.contains(obs_v)
     for j in range(n):
