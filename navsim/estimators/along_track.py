@@ -116,6 +116,17 @@ filter's own acceleration estimate decides whether slip is possible), after whic
 clone is constant, so its rows of Phi are the identity. Without an odometer in the
 context, or with ``odometer="none"``, the filter is the one without these states.
 
+Measured (tests/estimators/test_odometer_aiding.py): 20 seeds of the lever-arm case
+(antenna at the IMU, matched tactical IMU, rail tachometer without slip, 200 s with an
+80-s outage): along-track NEES 1.99 of 2, every per-second seed average inside the 95 %
+band, NIS/dof 1.01. Full mountain-railway (standalone receiver, tachometer with slip,
+seed 0), horizontal error at the exit of the 31 / 155 / 47-s tunnels: consumer MEMS
+0.68 / 35.3 / 1.9 m without, 0.66 / 2.3 / 1.3 m with; tactical 0.09 / 8.1 / 0.13 m
+without, 0.68 / 2.2 / 1.2 m with. With the tactical IMU the short tunnels come out worse
+with the odometer (the same with slip switched off): the scale factor is calibrated
+against the standalone receiver's time-correlated errors, which the filter takes as
+white, so its scale-factor estimate is off by ~0.1 % with a covariance saying 0.06 %.
+
 Output
 ------
 Position, tangent, heading, grade and cant come from the track at ``s``; velocity is

@@ -71,6 +71,18 @@ x(t)`` (LC.5), F the error dynamics of the engine's current covariance interval 
 sigma of the rail tachometer, so the end-of-interval error is not good enough). A GNSS
 update inside an odometer interval removes its correction from the INS velocities
 already summed.
+
+Measured (tests/estimators/test_odometer_aiding.py): on the lever-arm case with the
+antenna at the IMU and a rail tachometer without slip, a 60-s outage ends with 25.5 /
+31.4 / 70.2 m of horizontal error without the odometer and 2.2 / 0.75 / 1.4 m with it
+(seeds 0 / 1 / 2); 20 seeds, 200 s with an 80-s outage: mean NEES 6.7 of 9 (the filter
+is conservative: the constraint rows' R against a true violation of zero and the
+quantisation of consecutive spans taken as white; odometer-update NIS/dof ~0.45), every
+per-second seed average below the upper 95 % bound. Full mountain-railway (standalone
+receiver, rail tachometer with slip, seed 0), horizontal error at the exit of its
+31 / 155 / 47-s tunnels: tactical IMU 1.6 / 419 / 9.2 m without, 1.7 / 11.2 / 2.4 m with;
+consumer MEMS 13.9 / 1475 / 53 m without, 3.5 / 141 / 4.4 m with (heading drift, which
+neither the odometer nor the constraint observes, is what is left).
 ``odometer="none"``, or no odometer in the context, is the filter without these terms,
 number for number.
 
