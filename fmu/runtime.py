@@ -416,6 +416,9 @@ class PlantRuntime(_RuntimeBase):
         for r in range(1, self.dims.orders + 1):
             self.store.write(f"imu.dtheta_r{r}", np.zeros(3))
             self.store.write(f"imu.dv_r{r}", np.zeros(3))
+        if self.dims.odometer:
+            self.store.write("odometer.ds_m", 0.0)
+            self.store.write("odometer.pulses", 0)
 
     def _write_steps(self, served) -> None:
         from navsim.sensors.imu import compose_multiple_integrals
@@ -433,6 +436,9 @@ class PlantRuntime(_RuntimeBase):
             self.store.write(f"imu.dv_r{r}", dv[r - 1])
         self.store.write("imu.dtheta_sub", imu.dtheta_sample[i, :, 0])
         self.store.write("imu.dv_sub", imu.dv_sample[i, :, 0])
+        if self.dims.odometer:  # distances and pulse counts of consecutive steps add exactly
+            self.store.write("odometer.ds_m", math.fsum(float(c.odometer.ds_m[j]) for c, j in served))
+            self.store.write("odometer.pulses", int(sum(int(c.odometer.pulses[j]) for c, j in served)))
         self._write_truth(chunk.truth, i)
         self.store.write("time.t_s", float(chunk.t[i]))
         self.store.write("time.step", chunk.step0 + i + 1)
@@ -558,7 +564,8 @@ class EstimatorRuntime(_RuntimeBase):
             step=k, t=(k + 1) * dt, dt=dt,
             dtheta_r=np.stack([read(f"imu.dtheta_r{r}") for r in range(1, orders + 1)]),
             dv_r=np.stack([read(f"imu.dv_r{r}") for r in range(1, orders + 1)]),
-            dtheta_sub=read("imu.dtheta_sub"), dv_sub=read("imu.dv_sub"), gnss=gnss)
+            dtheta_sub=read("imu.dtheta_sub"), dv_sub=read("imu.dv_sub"), gnss=gnss,
+            odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
         est = self.estimator.step(meas)
         self.step_index += 1
         w = self.store.write

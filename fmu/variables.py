@@ -16,6 +16,7 @@ Groups (``Var.group``)
     ``motion``     inputs: external along-track motion (arc length, speed, acceleration)
     ``imu``        IMU increments and multiple integrals of the last navigation step(s)
     ``gnss``       per-channel GNSS arrays with a validity mask and a new-epoch flag
+    ``odometer``   wheel-odometer distance and pulses (only with an odometer)
     ``time``       time stamps and counters
     ``truth``      the true state (plant only; never an estimator input)
     ``prior``      the estimator's initial estimate drawn by the simulator
@@ -130,17 +131,20 @@ class Dimensions:
     channels : GNSS channels (one per satellite of the constellation).
     orders : multiple-integral orders R of the IMU output.
     samples_per_step : IMU samples m per navigation step.
+    odometer : the scenario has a wheel odometer (``[odometer] enabled``).
     """
 
     channels: int
     orders: int
     samples_per_step: int
+    odometer: bool = False
 
     @classmethod
     def of(cls, simulator) -> "Dimensions":
         """The dimensions of a built :class:`navsim.simulator.Simulator`."""
         return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),
-                   samples_per_step=int(simulator.timing.samples_per_step))
+                   samples_per_step=int(simulator.timing.samples_per_step),
+                   odometer=bool(simulator.scenario.odometer.enabled))
 
 
 def size(shape: tuple[int, ...]) -> int:
@@ -243,6 +247,19 @@ def _gnss_vars(dims: Dimensions, causality: str) -> list[Var]:
             "ECEF satellite position of each channel at transmission", s(0.0), (n, 3), "gnss", low=-1e8, high=1e8),
         Var("gnss.sat_vel_e", "real", causality, var, "m/s",
             "ECEF satellite velocity of each channel", s(0.0), (n, 3), "gnss", low=-1e4, high=1e4),
+    ]
+
+
+def _odometer_vars(dims: Dimensions, causality: str) -> list[Var]:
+    if not dims.odometer:
+        return []
+    inp = causality == "input"
+    return [
+        Var("odometer.ds_m", "real", causality, "discrete", "m",
+            "Wheel-odometer distance over the navigation steps of the last interval (pulses times the "
+            "pulse length; navsim.sensors.odometer)", 0.0 if inp else None, (), "odometer", -1e4, 1e4),
+        Var("odometer.pulses", "int", causality, "discrete", "",
+            "Wheel-encoder pulses counted over the same steps", 0 if inp else None, (), "odometer"),
     ]
 
 
@@ -359,7 +376,8 @@ def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]
     """
     defaults = defaults or {}
     return (_info_vars() + _plant_parameters(defaults) + _motion_inputs(defaults) + _time_vars("plant")
-            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _truth_vars() + _prior_vars("output"))
+            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _odometer_vars(dims, "output")
+            + _truth_vars() + _prior_vars("output"))
 
 
 def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
@@ -374,7 +392,8 @@ def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[
             "Estimator keyword options as a TOML inline table body, e.g. 'gnss_update = \"pseudorange\"'",
             defaults.get("estimator.options", ""), (), "parameter"),
     ]
-    return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input") + _prior_vars("input")
+    return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input")
+            + _odometer_vars(dims, "input") + _prior_vars("input")
             + _time_vars("estimator") + _solution_vars() + _uncertainty_vars())
 
 

@@ -36,7 +36,7 @@ Time
     tick; anything else is rejected when the scenario is built.
 Randomness
     ``Simulator.reset(seed)`` makes one :class:`numpy.random.SeedSequence` and spawns
-    named child streams (motion, imu, gnss, outages, initial_error). Turning a source off
+    named child streams (motion, imu, gnss, outages, initial_error, odometer). Turning a source off
     changes no other stream; generation is chunk-invariant (the same numbers whatever
     the chunk size). The global NumPy RNG is never used.
 Missing data

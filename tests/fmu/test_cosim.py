@@ -53,3 +53,39 @@ def test_estimator_fmu_refuses_other_steps(estimator3):
         inst.initialize()
         with pytest.raises(FmuCallError, match="exactly one navigation step"):
             inst.do_step(0.0, 0.02)
+
+
+def test_odometer_through_the_fmus(fmu_dir, scenario):
+    """With [odometer] enabled the plant outputs odometer.ds_m / odometer.pulses and the
+    estimator FMU feeds them to lc-ekf: the same numbers as run_episode."""
+    pytest.importorskip("pythonfmu")
+    from navsim.fmu.build import build_fmu
+    from navsim.fmu.master import cosimulate
+    from navsim.fmu.variables import Dimensions, plant_variables
+
+    odo = scenario.with_overrides({"odometer": {"enabled": True}})
+    plant = build_fmu(odo, "plant", 2, fmu_dir / "plant_odo.fmu")
+    est = build_fmu(odo, "estimator", 2, fmu_dir / "estimator_odo.fmu", estimator="lc-ekf")
+    names = {v.name for v in plant_variables(Dimensions(channels=24, orders=4, samples_per_step=1, odometer=True))}
+    assert {"odometer.ds_m", "odometer.pulses"} <= names
+    record = cosimulate(plant, est, seed=SEED)
+    reference = run_episode(odo, estimators.make("lc-ekf"), seed=SEED, use_batch=False)
+    for field in ("est_lat", "est_lon", "est_h", "est_velocity_n", "est_hpr", "est_cov", "nis"):
+        np.testing.assert_array_equal(getattr(record, field), getattr(reference, field), err_msg=field)
+    # the odometer changed the solution (it is really used)
+    plain = run_episode(scenario, estimators.make("lc-ekf"), seed=SEED, use_batch=False)
+    assert not np.array_equal(plain.est_lat, reference.est_lat)
+    # a communication step of 5 navigation steps gives the sum of their pulses and distances
+    from navsim.fmu.master import FmuInstance
+    from navsim.simulator import Simulator
+
+    sim = Simulator(odo)
+    sim.reset(SEED)
+    core = sim.advance(100).odometer
+    with FmuInstance(plant, "p") as inst:
+        inst.initialize({"seed": SEED})
+        for k in range(20):
+            inst.do_step(k * 0.05, 0.05)
+            row = inst.get(["odometer.ds_m", "odometer.pulses"])
+            assert row["odometer.pulses"] == int(core.pulses[5 * k:5 * k + 5].sum())
+            assert row["odometer.ds_m"] == pytest.approx(float(core.ds_m[5 * k:5 * k + 5].sum()), rel=1e-15, abs=1e-15)
