@@ -34,6 +34,11 @@ def navsim_rate(rate_hz: float, duration: float, gnss: bool, imu: str, chunk: in
         "timing": {"tick_s": period, "imu_period_s": period, "nav_period_s": period, "duration_s": duration},
         "gnss": {"enabled": gnss}, "imu": {"preset": imu},
     })
+    return _simulate_rate(scenario, chunk)
+
+
+def _simulate_rate(scenario, chunk: int) -> tuple[float, float]:
+    """IMU samples/s and wall seconds of generating the whole scenario in chunks."""
     sim = Simulator(scenario)
     sim.reset(0)
     t0 = time.perf_counter()
@@ -51,14 +56,7 @@ def scenario_rate(name: str, duration: float, chunk: int = 20_000) -> tuple[floa
         "timing": {"duration_s": min(duration, base.timing.duration_s)},
         "gnss": {"enabled": False}, "imu": {"preset": "ideal"},
     })
-    sim = Simulator(scenario)
-    sim.reset(0)
-    t0 = time.perf_counter()
-    samples = 0
-    for c in sim.chunks(chunk):
-        samples += c.imu.dtheta_sample.shape[0] * c.imu.dtheta_sample.shape[1]
-    elapsed = time.perf_counter() - t0
-    return samples / elapsed, elapsed
+    return _simulate_rate(scenario, chunk)
 
 
 def truthgen_rate(name: str, duration: float, split: bool, chunk: int = 20_000) -> tuple[float, float, float, float]:
