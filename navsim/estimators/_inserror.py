@@ -878,32 +878,56 @@ def body_velocity_terms(mat_nb, velocity_n) -> tuple[np.ndarray, np.ndarray]:
 
 
 class AuxStateIns(ErrorStateIns):
-    """:class:`ErrorStateIns` plus ``n_aux`` auxiliary error states (random walks).
+    """:class:`ErrorStateIns` plus ``n_aux`` auxiliary error states (random walks or
+    first-order Gauss-Markov processes).
 
-    The auxiliary states (e.g. the wheel-odometer scale factor) neither drive nor are
-    driven by the INS errors, so over a covariance interval ``Phi = diag(Phi_15, I)`` and
-    ``Qd = diag(Qd_15, q_aux tau)``: the engine keeps propagating its 15 x 15 block and
-    this class carries the cross-covariance ``P_na(tau) = Phi_15(tau) P_na`` and
-    ``P_aa(tau) = P_aa + diag(q_aux) tau`` from the interval start, assembling the full
-    matrix only at updates (the device of the tightly coupled filter's clock engine).
-    Every :meth:`update` is made on the full state; a 15-column H is padded with zeros.
+    The auxiliary states (e.g. the wheel-odometer scale factor, the slowly varying error
+    of a GNSS fix) neither drive nor are driven by the INS errors, so over a covariance
+    interval ``Phi = diag(Phi_15, Phi_a)`` and ``Qd = diag(Qd_15, Qd_a)``: the engine keeps
+    propagating its 15 x 15 block and this class carries the cross-covariance
+    ``P_na(tau) = Phi_15(tau) P_na Phi_a(tau)`` and ``P_aa(tau) = Phi_a P_aa Phi_a + Qd_a``
+    from the interval start, assembling the full matrix only at updates (the device of the
+    tightly coupled filter's clock engine). Every :meth:`update` is made on the full state;
+    a 15-column H is padded with zeros.
+
+    Per auxiliary state i with correlation time ``T_i`` and driving PSD ``q_i``
+    (``x_i' = -x_i / T_i + w_i``)::
+
+        phi_i(tau) = exp(-tau / T_i),   Qd_i(tau) = q_i T_i / 2 (1 - exp(-2 tau / T_i))   (AX.1)
+
+    (the exact discretisation; stationary variance ``q_i T_i / 2``, so ``q_i = 2 sigma_i^2
+    / T_i``), and for ``T_i = inf`` (the default) the random walk ``phi_i = 1``, ``Qd_i =
+    q_i tau``. The estimate of a Gauss-Markov state decays with the same ``phi_i``
+    between updates (the conditional mean of the process; :meth:`aux_now`). Without
+    ``aux_tau_s`` (or with every ``T_i`` infinite) the code is the random-walk engine of
+    before, number for number.
 
     Parameters
     ----------
-    aux_variance : (n_aux,) initial variances. aux_psd : (n_aux,) random-walk PSDs
-    (per second). Other parameters as :class:`ErrorStateIns`.
+    aux_variance : (n_aux,) initial variances. aux_psd : (n_aux,) driving PSDs (per
+    second). aux_tau_s : (n_aux,) correlation times, s (``inf``: random walk), or None
+    (all random walks). Other parameters as :class:`ErrorStateIns`.
 
     Attributes
     ----------
     aux : ndarray (n_aux,)
-        The estimates of the auxiliary quantities; the error state is ``aux - truth``
+        The estimates of the auxiliary quantities at the start of the current covariance
+        interval (:meth:`aux_now` at the current step); the error state is ``aux - truth``
         and the feedback subtracts the estimated error.
     """
 
-    def __init__(self, context, prior, noise: ImuNoise, *, aux_variance, aux_psd, **kw):
+    def __init__(self, context, prior, noise: ImuNoise, *, aux_variance, aux_psd, aux_tau_s=None, **kw):
         var = np.asarray(aux_variance, dtype=float).reshape(-1)
         self.aux_psd = np.asarray(aux_psd, dtype=float).reshape(-1)
         self.n_aux = len(var)
+        if len(self.aux_psd) != self.n_aux:
+            raise ConfigError("aux_psd", f"{self.n_aux} driving PSDs", len(self.aux_psd))
+        tau = np.full(self.n_aux, math.inf) if aux_tau_s is None else np.asarray(aux_tau_s, dtype=float).reshape(-1)
+        if len(tau) != self.n_aux or not np.all(tau > 0.0):
+            raise ConfigError("aux_tau_s", f"{self.n_aux} positive correlation times, s (inf: random walk)",
+                              aux_tau_s)
+        self.aux_tau_s = tau
+        self._markov = bool(np.any(np.isfinite(tau)))  # False: the random-walk code of before
         self.n_states = N_STATES + self.n_aux
         self.aux = np.zeros(self.n_aux)
         self.P_na = np.zeros((N_STATES, self.n_aux))
@@ -911,16 +935,36 @@ class AuxStateIns(ErrorStateIns):
         self._fresh = True  # the next interval start carries no auxiliary propagation
         super().__init__(context, prior, noise, **kw)
 
+    def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """(phi_a, Qd_a diagonal) of the auxiliary states over tau seconds (AX.1)."""
+        T = self.aux_tau_s
+        finite = np.isfinite(T)
+        Tf = np.where(finite, T, 1.0)
+        phi = np.where(finite, np.exp(-tau / Tf), 1.0)
+        qd = np.where(finite, 0.5 * self.aux_psd * Tf * -np.expm1(-2.0 * tau / Tf), self.aux_psd * tau)
+        return phi, qd
+
     def _aux_blocks(self) -> tuple[np.ndarray, np.ndarray]:
         """P_na and P_aa at the current step of the interval."""
         tau = self._j * self.dt
         if tau == 0.0:
             return self.P_na, self.P_aa
         phi = self._series.phi(np.array([tau]))[0]
-        return phi @ self.P_na, self.P_aa + np.diag(self.aux_psd * tau)
+        if not self._markov:
+            return phi @ self.P_na, self.P_aa + np.diag(self.aux_psd * tau)
+        phi_a, qd = self._aux_transition(tau)
+        return (phi @ self.P_na) * phi_a, phi_a[:, None] * self.P_aa * phi_a + np.diag(qd)  # (AX.1)
+
+    def aux_now(self) -> np.ndarray:
+        """The auxiliary estimates at the current step (Gauss-Markov ones decayed)."""
+        if not self._markov or self._j == 0:
+            return self.aux.copy()
+        return self.aux * self._aux_transition(self._j * self.dt)[0]
 
     def _start_interval(self, P: np.ndarray) -> None:
         if not self._fresh:  # the engine restarts an interval on its own: carry the blocks
+            if self._markov:
+                self.aux = self.aux_now()
             self.P_na, self.P_aa = self._aux_blocks()
         self._fresh = False
         super()._start_interval(P)
@@ -956,7 +1000,7 @@ class AuxStateIns(ErrorStateIns):
         self.state = correct_state(self.state, dx[NAV], self.earth)
         self.gyro_bias = self.gyro_bias + dx[BG]
         self.accel_bias = self.accel_bias + dx[BA]
-        self.aux = self.aux - dx[N_STATES:]
+        self.aux = (self.aux_now() if self._markov else self.aux) - dx[N_STATES:]
         P_new = self._guard(P_new)
         self.P_na, self.P_aa = P_new[:N_STATES, N_STATES:].copy(), P_new[N_STATES:, N_STATES:].copy()
         self._fresh = True

@@ -131,15 +131,31 @@ from ._inserror import (
     nis_threshold,
 )
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .tightly import atmosphere_delays
 
-__all__ = ["LooselyCoupledEkf", "gnss_fixes"]
+__all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_model"]
+
+# Error of a least-squares fix (position + clock) per metre of a common-mode zenith delay
+# mapped to the satellites, (horizontal per axis, vertical), RMS over 24 h of the bundled
+# GPS constellation at 45 deg latitude with a 10 deg mask (measured with the fixes
+# themselves; tests/estimators/test_loosely.py recomputes them): ionosphere (thin-shell
+# obliquity) (0.07 E / 0.13 N, 1.95 U), troposphere (DO-229 mapping) (0.28 E / 0.46 N,
+# 3.56 U). The vertical error is positive (the fix goes up: the clock absorbs the common
+# part, the excess delay of the low satellites pushes the fix away from them).
+FIX_ZENITH_FACTORS = {"ionosphere": (0.15, 2.0), "troposphere": (0.5, 3.6)}
 
 
-def gnss_fixes(observations, min_satellites: int = 4, initial_e=None):
+def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere=None, earth=None):
     """Position and velocity fixes of a list of :class:`GnssObservation` (vectorised).
 
     ``initial_e`` (3,): a starting point of the Gauss-Newton iteration for every epoch
     (e.g. the prior position: fewer iterations than from the Earth's centre).
+    ``atmosphere``: None (raw pseudoranges), or ``(ionosphere_zenith_m,
+    troposphere_zenith_m, shell_height_m, scale_height_m)``, the a-priori zenith delays a
+    standalone receiver removes before its fix (:class:`NominalGnss`): a first fix gives
+    the elevations, the delays (thin-shell obliquity and DO-229 mapping,
+    :func:`navsim.estimators.tightly.atmosphere_delays`) are subtracted from the
+    pseudoranges and the fix is repeated from the first one (``earth`` required).
 
     Returns
     -------
@@ -159,9 +175,49 @@ def gnss_fixes(observations, min_satellites: int = 4, initial_e=None):
     valid = np.stack([np.asarray(o.valid, bool) for o in observations])
     n_valid = valid.sum(axis=1)
     fix = least_squares_fix(sat_pos, rho, valid, initial=initial_e)
+    if atmosphere is not None:  # (LC.6) the receiver's a-priori correction
+        iono_z, tropo_z, shell_m, scale_m = atmosphere
+        start = fix.position_e if initial_e is None else np.where(fix.ok[:, None], fix.position_e, initial_e)
+        lat, lon, h = earth.ecef_to_geodetic(start)
+        iono, tropo = atmosphere_delays(lat, lon, h, sat_pos, iono_z, tropo_z, earth, shell_height_m=shell_m,
+                                        scale_height_m=scale_m)
+        fix = least_squares_fix(sat_pos, rho - iono - tropo, valid, initial=start)
     vfix = velocity_fix(sat_pos, sat_vel, rate, valid, np.where(fix.ok[:, None], fix.position_e, 0.0))
     ok = fix.ok & vfix.ok & (n_valid >= min_satellites)
     return ok, fix.position_e, fix.covariance[:, :3, :3], vfix.velocity_e, vfix.covariance[:, :3, :3], n_valid
+
+
+def fix_error_model(gnss, height_m: float = 0.0, tau_s=(1200.0, 7200.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Stationary sigma (3,) and correlation time (3,) of the ENU Gauss-Markov fix error.
+
+    The residual zenith delays of a standalone receiver after its a-priori correction
+    (1-sigma ``ionosphere_zenith_sigma_m`` and ``troposphere_zenith_sigma_m`` scaled by
+    ``exp(-h / H)`` to the receiver height) are independent and common to all
+    satellites, so the fix error they cause is ``k_I dI + k_T dT`` per axis with the
+    geometry factors :data:`FIX_ZENITH_FACTORS` (LC.7)::
+
+        sigma_h = hypot(k_hI sigma_I, k_hT sigma_T),  sigma_u = hypot(k_uI sigma_I, k_uT sigma_T)
+
+    Correlation times ``tau_s = (horizontal, vertical)``: the horizontal error follows the
+    satellite geometry (measured 1/e time of its autocorrelation 0.7-1.3 ks, about zero at
+    30 min, tests/estimators/test_loosely.py); the vertical error keeps its sign and 90 %
+    of its size for hours (autocorrelation of the raw error 0.99 at 1 h; the 2 h default
+    leaves the filter some room for the geometry change of a new satellite).
+
+    Parameters
+    ----------
+    gnss : NominalGnss. height_m : receiver height, m. tau_s : (2,) s.
+
+    Returns
+    -------
+    sigma_m : (3,) E, N, U, m. tau_s : (3,) s.
+    """
+    k_hi, k_ui = FIX_ZENITH_FACTORS["ionosphere"]
+    k_ht, k_ut = FIX_ZENITH_FACTORS["troposphere"]
+    s_i = float(gnss.ionosphere_zenith_sigma_m)
+    s_t = float(gnss.troposphere_zenith_sigma_m) * math.exp(-height_m / gnss.troposphere_scale_height_m)
+    sigma_h, sigma_u = math.hypot(k_hi * s_i, k_ht * s_t), math.hypot(k_ui * s_i, k_ut * s_t)  # (LC.7)
+    return np.array([sigma_h, sigma_h, sigma_u]), np.array([tau_s[0], tau_s[0], tau_s[1]], dtype=float)
 
 
 class LooselyCoupledEkf:
@@ -198,6 +254,14 @@ class LooselyCoupledEkf:
         Apply the non-holonomic constraint with the odometer updates (default True).
     nhc_sigma_mps : float
         Its 1-sigma per axis, m/s.
+    fix_error : {"auto", "white"}
+        "auto": with ``context.gnss.atmosphere_modelled`` (an uncorrected single-frequency
+        receiver), the fixes are made from pseudoranges corrected with the a-priori zenith
+        delays (LC.6) and their residual error is three ENU Gauss-Markov states (LC.7-8);
+        "white" (and "auto" without atmosphere): the fixes as white measurements, the
+        filter of before, number for number.
+    fix_error_tau_s : (2,) float
+        Correlation times of the horizontal and vertical fix-error states, s.
 
     Attributes
     ----------
@@ -209,7 +273,17 @@ class LooselyCoupledEkf:
                  divergence_probability: float = 1e-6, divergence_epochs: int = 10, coning: str | None = None,
                  sculling: str | None = None, position: str | None = None, lever_arm: str = "auto",
                  odometer: str = "auto", odometer_period_s: float = 1.0, nhc: bool = True,
-                 nhc_sigma_mps: float = 0.05) -> None:
+                 nhc_sigma_mps: float = 0.05, fix_error: str = "auto",
+                 fix_error_tau_s: tuple[float, float] = (1200.0, 7200.0)) -> None:
+        if fix_error not in ("auto", "white"):
+            raise ConfigError("fix_error", "'auto' or 'white'", fix_error)
+        tau = tuple(fix_error_tau_s)
+        if len(tau) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0.0
+                                    for x in tau):
+            raise ConfigError("fix_error_tau_s", "two positive correlation times, s (horizontal, vertical)",
+                              fix_error_tau_s)
+        self.fix_error = fix_error
+        self.fix_error_tau_s = (float(tau[0]), float(tau[1]))
         if int(min_satellites) != min_satellites or min_satellites < 4:
             raise ConfigError("min_satellites", "an integer >= 4", min_satellites)
         if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
@@ -252,14 +326,33 @@ class LooselyCoupledEkf:
         steps = max(1, round(period / context.nav_period_s))
         spec = getattr(context, "odometer", None)
         self._odo = spec if self.odometer == "auto" else None
-        if self._odo is None:
-            self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
-        else:  # one auxiliary state: the odometer scale-factor error
+        gn = context.gnss
+        self._atmosphere = None
+        self._fix_index = None  # first auxiliary index of the fix-error states
+        if self.fix_error == "auto" and getattr(gn, "atmosphere_modelled", False):
+            sigma, tau_fix = fix_error_model(gn, float(prior.h), self.fix_error_tau_s)
+            if sigma[2] > 0.0:
+                self._atmosphere = (gn.ionosphere_zenith_m, gn.troposphere_zenith_m, gn.ionosphere_shell_height_m,
+                                    gn.troposphere_scale_height_m)
+        aux_var, aux_psd, aux_tau = [], [], []
+        if self._odo is not None:  # the odometer scale-factor error (a random walk)
             tau = float(spec.scale_factor_tau_s)
             psd = 2.0 * spec.scale_factor_gm_sigma**2 / tau if math.isfinite(tau) else 0.0
+            aux_var.append(spec.scale_factor_sigma**2 + spec.scale_factor_gm_sigma**2)
+            aux_psd.append(psd)
+            aux_tau.append(math.inf)
+        if self._atmosphere is not None:  # (LC.8) three Gauss-Markov fix-error states
+            self._fix_index = len(aux_var)
+            aux_var.extend(sigma**2)
+            aux_psd.extend(2.0 * sigma**2 / tau_fix)
+            aux_tau.extend(tau_fix)
+        if not aux_var:
+            self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
+        else:
             self.engine = AuxStateIns(context, prior, noise, interval_steps=steps, **self.methods,
-                                      aux_variance=[spec.scale_factor_sigma**2 + spec.scale_factor_gm_sigma**2],
-                                      aux_psd=[psd])
+                                      aux_variance=aux_var, aux_psd=aux_psd,
+                                      aux_tau_s=aux_tau if self._atmosphere is not None else None)
+        if self._odo is not None:
             self._odo_steps = max(1, round(self.odometer_period_s / context.nav_period_s))
             self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
             self._odo_vb = np.zeros(3)
@@ -288,6 +381,8 @@ class LooselyCoupledEkf:
         row = out.solution[0]
         eng = self.engine
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+        if self._fix_index is not None:
+            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
         if self._odo is not None:
             extra["odometer_scale"] = float(eng.aux[0])
             extra["odometer_nis"] = self.odometer_nis
@@ -310,7 +405,7 @@ class LooselyCoupledEkf:
         nis_dof = np.zeros(n, dtype=int)
         epochs = list(batch.gnss)
         ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes([o for _, o in epochs], self.min_satellites,
-                                                                 self._initial_e)
+                                                                 self._initial_e, self._atmosphere, eng.earth)
         body = eng.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)
         # update steps: the epochs with a fix (missing data is a value: an epoch without
         # one is just INS) and, with an odometer, the ends of the odometer intervals
@@ -384,6 +479,11 @@ class LooselyCoupledEkf:
             if self._with_lever:
                 H = L[:3]
             R, y = R_pos, y_pos
+        if self._fix_index is not None:  # (LC.8) y = dr + db - w with the fix error b
+            i = N_STATES + self._fix_index
+            y[:3] += eng.aux_now()[self._fix_index:self._fix_index + 3]
+            H = np.concatenate([H, np.zeros((len(y), eng.n_states - N_STATES))], axis=1)
+            H[0, i], H[1, i + 1], H[2, i + 2] = 1.0, 1.0, 1.0
         value, dx = eng.update(H, 0.5 * (R + R.T), y)
         if self._odo is not None and self._odo_n:
             # the INS rows already summed for the odometer carry the error just removed:
