@@ -877,18 +877,80 @@ def body_velocity_terms(mat_nb, velocity_n) -> tuple[np.ndarray, np.ndarray]:
     return C.T @ v, J
 
 
-class AuxStateIns(ErrorStateIns):
+class AuxBlocksIns(ErrorStateIns):
+    """:class:`ErrorStateIns` plus ``n_aux`` auxiliary error states that neither drive nor
+    are driven by the INS errors (receiver clock, atmospheric delays, odometer scale
+    factor, the slowly varying error of a GNSS fix).
+
+    F and Qc are then block diagonal and over a covariance interval ``Phi = diag(Phi_15,
+    Phi_a)``: the engine keeps propagating its 15 x 15 block untouched, and this class
+    carries the auxiliary block and the cross-covariance from the interval start,
+    ``P_na(tau) = Phi_15(tau) P_na Phi_a(tau)^T`` and ``P_aa(tau) = Phi_a P_aa Phi_a^T +
+    Qd_a``, with the engine's own ``Phi_15`` (nothing of its series is duplicated). The
+    full matrix is assembled at updates only. Subclasses give ``_aux_transition(tau) ->
+    (Phi_a, Qd_a)`` (full n_aux-square matrices) and may carry their estimates over an
+    interval in ``_carry_means``.
+    """
+
+    def _init_aux(self, variances) -> None:
+        """Set up ``n_aux`` states with the given initial variances (before ``super().__init__``)."""
+        self.n_aux = len(variances)
+        self.n_states = N_STATES + self.n_aux
+        self.P_na = np.zeros((N_STATES, self.n_aux))
+        self.P_aa = np.diag(variances) if self.n_aux else np.zeros((0, 0))
+        self._fresh = True  # the next interval start carries no auxiliary propagation
+
+    def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _aux_blocks(self) -> tuple[np.ndarray, np.ndarray]:
+        """P_na and P_aa at the current step of the interval."""
+        tau = self._j * self.dt
+        if tau == 0.0:
+            return self.P_na, self.P_aa
+        phi = self._series.phi(np.array([tau]))[0]
+        phi_a, q_a = self._aux_transition(tau)
+        return phi @ self.P_na @ phi_a.T, phi_a @ self.P_aa @ phi_a.T + q_a
+
+    def _carry_means(self) -> None:
+        """Carry the auxiliary estimates to the current step (default: they are constant)."""
+
+    def _start_interval(self, P: np.ndarray) -> None:
+        if self.n_aux and not self._fresh:
+            # the engine restarts an interval on its own: carry the auxiliary blocks to here
+            self._carry_means()
+            self.P_na, self.P_aa = self._aux_blocks()
+        self._fresh = False
+        super()._start_interval(P)
+
+    def _restart_after_update(self, P_new: np.ndarray) -> None:
+        """Keep the updated auxiliary blocks and restart the interval from P_new."""
+        self.P_na, self.P_aa = P_new[:N_STATES, N_STATES:].copy(), P_new[N_STATES:, N_STATES:].copy()
+        self._fresh = True
+        self._start_interval(P_new[:N_STATES, :N_STATES].copy())
+
+    def full_covariance(self) -> np.ndarray:
+        """The (15 + n_aux)-square covariance at the current step."""
+        P = self.covariance
+        if not self.n_aux:
+            return P
+        P_na, P_aa = self._aux_blocks()
+        full = np.empty((self.n_states, self.n_states))
+        full[:N_STATES, :N_STATES] = P
+        full[:N_STATES, N_STATES:] = P_na
+        full[N_STATES:, :N_STATES] = P_na.T
+        full[N_STATES:, N_STATES:] = P_aa
+        return full
+
+
+class AuxStateIns(AuxBlocksIns):
     """:class:`ErrorStateIns` plus ``n_aux`` auxiliary error states (random walks or
     first-order Gauss-Markov processes).
 
     The auxiliary states (e.g. the wheel-odometer scale factor, the slowly varying error
-    of a GNSS fix) neither drive nor are driven by the INS errors, so over a covariance
-    interval ``Phi = diag(Phi_15, Phi_a)`` and ``Qd = diag(Qd_15, Qd_a)``: the engine keeps
-    propagating its 15 x 15 block and this class carries the cross-covariance
-    ``P_na(tau) = Phi_15(tau) P_na Phi_a(tau)`` and ``P_aa(tau) = Phi_a P_aa Phi_a + Qd_a``
-    from the interval start, assembling the full matrix only at updates (the device of the
-    tightly coupled filter's clock engine). Every :meth:`update` is made on the full state;
-    a 15-column H is padded with zeros.
+    of a GNSS fix) are independent of each other; the interval bookkeeping is that of
+    :class:`AuxBlocksIns`. Every :meth:`update` is made on the full state; a 15-column H
+    is padded with zeros.
 
     Per auxiliary state i with correlation time ``T_i`` and driving PSD ``q_i``
     (``x_i' = -x_i / T_i + w_i``)::
@@ -919,24 +981,20 @@ class AuxStateIns(ErrorStateIns):
     def __init__(self, context, prior, noise: ImuNoise, *, aux_variance, aux_psd, aux_tau_s=None, **kw):
         var = np.asarray(aux_variance, dtype=float).reshape(-1)
         self.aux_psd = np.asarray(aux_psd, dtype=float).reshape(-1)
-        self.n_aux = len(var)
-        if len(self.aux_psd) != self.n_aux:
-            raise ConfigError("aux_psd", f"{self.n_aux} driving PSDs", len(self.aux_psd))
-        tau = np.full(self.n_aux, math.inf) if aux_tau_s is None else np.asarray(aux_tau_s, dtype=float).reshape(-1)
-        if len(tau) != self.n_aux or not np.all(tau > 0.0):
-            raise ConfigError("aux_tau_s", f"{self.n_aux} positive correlation times, s (inf: random walk)",
+        if len(self.aux_psd) != len(var):
+            raise ConfigError("aux_psd", f"{len(var)} driving PSDs", len(self.aux_psd))
+        tau = np.full(len(var), math.inf) if aux_tau_s is None else np.asarray(aux_tau_s, dtype=float).reshape(-1)
+        if len(tau) != len(var) or not np.all(tau > 0.0):
+            raise ConfigError("aux_tau_s", f"{len(var)} positive correlation times, s (inf: random walk)",
                               aux_tau_s)
         self.aux_tau_s = tau
-        self._markov = bool(np.any(np.isfinite(tau)))  # False: the random-walk code of before
-        self.n_states = N_STATES + self.n_aux
-        self.aux = np.zeros(self.n_aux)
-        self.P_na = np.zeros((N_STATES, self.n_aux))
-        self.P_aa = np.diag(var)
-        self._fresh = True  # the next interval start carries no auxiliary propagation
+        self._markov = bool(np.any(np.isfinite(tau)))
+        self.aux = np.zeros(len(var))
+        self._init_aux(var)
         super().__init__(context, prior, noise, **kw)
 
-    def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
-        """(phi_a, Qd_a diagonal) of the auxiliary states over tau seconds (AX.1)."""
+    def _aux_decay(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """(phi_i, Qd_i) per auxiliary state over tau seconds (AX.1)."""
         T = self.aux_tau_s
         finite = np.isfinite(T)
         Tf = np.where(finite, T, 1.0)
@@ -944,41 +1002,20 @@ class AuxStateIns(ErrorStateIns):
         qd = np.where(finite, 0.5 * self.aux_psd * Tf * -np.expm1(-2.0 * tau / Tf), self.aux_psd * tau)
         return phi, qd
 
-    def _aux_blocks(self) -> tuple[np.ndarray, np.ndarray]:
-        """P_na and P_aa at the current step of the interval."""
-        tau = self._j * self.dt
-        if tau == 0.0:
-            return self.P_na, self.P_aa
-        phi = self._series.phi(np.array([tau]))[0]
-        if not self._markov:
-            return phi @ self.P_na, self.P_aa + np.diag(self.aux_psd * tau)
-        phi_a, qd = self._aux_transition(tau)
-        return (phi @ self.P_na) * phi_a, phi_a[:, None] * self.P_aa * phi_a + np.diag(qd)  # (AX.1)
+    def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """Diagonal (Phi_a, Qd_a) over tau seconds (AX.1)."""
+        phi, qd = self._aux_decay(tau)
+        return np.diag(phi), np.diag(qd)
 
     def aux_now(self) -> np.ndarray:
         """The auxiliary estimates at the current step (Gauss-Markov ones decayed)."""
         if not self._markov or self._j == 0:
             return self.aux.copy()
-        return self.aux * self._aux_transition(self._j * self.dt)[0]
+        return self.aux * self._aux_decay(self._j * self.dt)[0]
 
-    def _start_interval(self, P: np.ndarray) -> None:
-        if not self._fresh:  # the engine restarts an interval on its own: carry the blocks
-            if self._markov:
-                self.aux = self.aux_now()
-            self.P_na, self.P_aa = self._aux_blocks()
-        self._fresh = False
-        super()._start_interval(P)
-
-    def full_covariance(self) -> np.ndarray:
-        """The (15 + n_aux)-square covariance at the current step."""
-        P = self.covariance
-        P_na, P_aa = self._aux_blocks()
-        full = np.empty((self.n_states, self.n_states))
-        full[:N_STATES, :N_STATES] = P
-        full[:N_STATES, N_STATES:] = P_na
-        full[N_STATES:, :N_STATES] = P_na.T
-        full[N_STATES:, N_STATES:] = P_aa
-        return full
+    def _carry_means(self) -> None:
+        if self._markov:
+            self.aux = self.aux_now()
 
     def update(self, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[float, np.ndarray]:
         """Closed-loop update on the full state (H (m, 15) or (m, 15 + n_aux))."""
@@ -1001,10 +1038,7 @@ class AuxStateIns(ErrorStateIns):
         self.gyro_bias = self.gyro_bias + dx[BG]
         self.accel_bias = self.accel_bias + dx[BA]
         self.aux = (self.aux_now() if self._markov else self.aux) - dx[N_STATES:]
-        P_new = self._guard(P_new)
-        self.P_na, self.P_aa = P_new[:N_STATES, N_STATES:].copy(), P_new[N_STATES:, N_STATES:].copy()
-        self._fresh = True
-        self._start_interval(P_new[:N_STATES, :N_STATES].copy())
+        self._restart_after_update(self._guard(P_new))
         return nis, dx
 
 

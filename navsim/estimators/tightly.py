@@ -191,7 +191,7 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import quat_to_mat
-from ._inserror import BA, BG, NAV, ErrorStateIns, ImuNoise, correct_state, joseph_update, lever_arm_terms
+from ._inserror import BA, BG, NAV, AuxBlocksIns, ImuNoise, correct_state, joseph_update, lever_arm_terms
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = [
@@ -539,17 +539,13 @@ def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
     return phi, q
 
 
-class _ClockEngine(ErrorStateIns):
-    """:class:`ErrorStateIns` plus auxiliary states: receiver clock (2) and atmosphere (2).
+class _ClockEngine(AuxBlocksIns):
+    """The INS error engine plus auxiliary states: receiver clock (2) and atmosphere (2).
 
     The clock dynamics (TC.1) and the atmospheric Gauss-Markov processes (TC.5) do not
-    involve the INS errors and vice versa, so F and Qc are block diagonal and over an
-    interval ``Phi = diag(Phi_15, Phi_a)``: the engine keeps propagating its 15 x 15
-    block untouched, and this class carries the auxiliary block ``P_aa`` and the
-    cross-covariance ``P_na`` from the interval start, ``P_na(tau) = Phi_15(tau) P_na
-    Phi_a(tau)^T``, ``P_aa(tau) = Phi_a P_aa Phi_a^T + Qd_a``, with the engine's own
-    ``Phi_15`` (so nothing of its series is duplicated). The full matrix is assembled at
-    updates only.
+    involve the INS errors and vice versa: the interval bookkeeping of the auxiliary
+    block is that of :class:`~navsim.estimators._inserror.AuxBlocksIns`; this class gives
+    their transition (coupled 2 x 2 clock block, diagonal atmosphere).
 
     ``atmosphere`` is None (no atmospheric states) or ``(apriori, sigma, tau)``, each
     (ionosphere, troposphere): a-priori zenith delays (m), their 1-sigma (m) and the
@@ -561,8 +557,6 @@ class _ClockEngine(ErrorStateIns):
         self.with_clock = bool(with_clock)
         self.with_atmosphere = atmosphere is not None
         self.atm_index = 15 + (2 if self.with_clock else 0)
-        self.n_aux = (2 if self.with_clock else 0) + (2 if self.with_atmosphere else 0)
-        self.n_states = 15 + self.n_aux
         self.clock = np.zeros(2)
         self._clock_psd = clock_psd
         variances = [clock_sigma[0] ** 2, clock_sigma[1] ** 2] if self.with_clock else []
@@ -573,9 +567,7 @@ class _ClockEngine(ErrorStateIns):
             self._atm_var = sigma**2
             self._atm_tau = tau
             variances += list(self._atm_var)
-        self.P_na = np.zeros((15, self.n_aux))
-        self.P_aa = np.diag(variances) if variances else np.zeros((0, 0))
-        self._fresh = True  # the next interval start carries no auxiliary propagation
+        self._init_aux(variances)
         super().__init__(context, prior, noise, **kw)
 
     def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -591,36 +583,6 @@ class _ClockEngine(ErrorStateIns):
         phi[a, a], phi[a + 1, a + 1] = decay
         q[a, a], q[a + 1, a + 1] = self._atm_var * (1.0 - decay * decay)
         return phi, q
-
-    def _clock_blocks(self) -> tuple[np.ndarray, np.ndarray]:
-        """P_na and P_aa at the current step of the interval."""
-        tau = self._j * self.dt
-        if tau == 0.0:
-            return self.P_na, self.P_aa
-        phi = self._series.phi(np.array([tau]))[0]
-        phi_a, q_a = self._aux_transition(tau)
-        return phi @ self.P_na @ phi_a.T, phi_a @ self.P_aa @ phi_a.T + q_a
-
-    def _start_interval(self, P: np.ndarray) -> None:
-        if self.n_aux and not self._fresh:
-            # the engine restarts an interval on its own: carry the auxiliary blocks to here
-            self.P_na, self.P_aa = self._clock_blocks()
-        self._fresh = False
-        super()._start_interval(P)
-
-    def full_covariance(self) -> np.ndarray:
-        """The (15 + n_aux)-square covariance at the current step."""
-        P = self.covariance
-        if not self.n_aux:
-            return P
-        P_na, P_aa = self._clock_blocks()
-        n = self.n_states
-        full = np.empty((n, n))
-        full[:15, :15] = P
-        full[:15, 15:] = P_na
-        full[15:, :15] = P_na.T
-        full[15:, 15:] = P_aa
-        return full
 
     def advance_body(self, body, start: int = 0, stop: int | None = None):
         rows, cov = super().advance_body(body, start, stop)
@@ -645,9 +607,9 @@ class _ClockEngine(ErrorStateIns):
             if self.with_atmosphere:
                 a = self.atm_index
                 self.atm = self.atm - dx[a:a + 2]
-            self.P_na, self.P_aa = P_new[:15, 15:].copy(), P_new[15:, 15:].copy()
-            self._fresh = True
-        self._start_interval(P_new[:15, :15].copy())
+            self._restart_after_update(P_new)
+        else:
+            self._start_interval(P_new[:15, :15].copy())
 
 
 # ============================================================================ options
