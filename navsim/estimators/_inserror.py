@@ -810,6 +810,16 @@ class ErrorStateIns:
         return rows, cov
 
     # -- measurement update --------------------------------------------------------------
+    def _feed_back(self, dx: np.ndarray) -> None:
+        """Closed-loop feedback of the 15 INS error states of dx (in place: the bias
+        entries are zeroed when biases are not estimated)."""
+        if not self.estimate_biases:
+            dx[BG] = 0.0
+            dx[BA] = 0.0
+        self.state = correct_state(self.state, dx[NAV], self.earth)
+        self.gyro_bias = self.gyro_bias + dx[BG]
+        self.accel_bias = self.accel_bias + dx[BA]
+
     def update(self, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[float, np.ndarray]:
         """Closed-loop Kalman update at the current step.
 
@@ -837,12 +847,7 @@ class ErrorStateIns:
             self.diverged = True
             self._start_interval(P)
             return math.nan, np.zeros(N_STATES)
-        if not self.estimate_biases:
-            dx[BG] = 0.0
-            dx[BA] = 0.0
-        self.state = correct_state(self.state, dx[NAV], self.earth)
-        self.gyro_bias = self.gyro_bias + dx[BG]
-        self.accel_bias = self.accel_bias + dx[BA]
+        self._feed_back(dx)
         self._start_interval(self._guard(P_new))
         return nis, dx
 
@@ -1031,12 +1036,7 @@ class AuxStateIns(AuxBlocksIns):
         if not np.all(np.isfinite(dx)):
             self.diverged = True
             return math.nan, np.zeros(self.n_states)
-        if not self.estimate_biases:
-            dx[BG] = 0.0
-            dx[BA] = 0.0
-        self.state = correct_state(self.state, dx[NAV], self.earth)
-        self.gyro_bias = self.gyro_bias + dx[BG]
-        self.accel_bias = self.accel_bias + dx[BA]
+        self._feed_back(dx)
         self.aux = (self.aux_now() if self._markov else self.aux) - dx[N_STATES:]
         self._restart_after_update(self._guard(P_new))
         return nis, dx

@@ -191,7 +191,7 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import quat_to_mat
-from ._inserror import BA, BG, NAV, AuxBlocksIns, ImuNoise, correct_state, joseph_update, lever_arm_terms
+from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = [
@@ -594,12 +594,7 @@ class _ClockEngine(AuxBlocksIns):
 
     def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
         """Closed-loop feedback of an estimated error dx and restart of the interval."""
-        if not self.estimate_biases:
-            dx[BG] = 0.0
-            dx[BA] = 0.0
-        self.state = correct_state(self.state, dx[NAV], self.earth)
-        self.gyro_bias = self.gyro_bias + dx[BG]
-        self.accel_bias = self.accel_bias + dx[BA]
+        self._feed_back(dx)
         P_new = self._guard(P_new)
         if self.n_aux:
             if self.with_clock:
