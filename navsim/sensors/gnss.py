@@ -79,6 +79,7 @@ import numpy as np
 
 from ..earth import WGS84, EarthModel, mat_en
 from ..errors import ConfigError, check_nonnegative
+from ._common import frozen_array
 
 __all__ = [
     "C_LIGHT",
@@ -118,12 +119,6 @@ SECONDS_PER_WEEK = 604_800.0
 
 REFERENCE_ALMANAC = "gps_walker_24_6_1.alm"
 """File name of the packaged YUMA almanac (navsim/data/almanac)."""
-
-
-def _frozen_array(value, dtype=float) -> np.ndarray:
-    arr = np.array(value, dtype=dtype, copy=True)
-    arr.setflags(write=False)
-    return arr
 
 
 # ====================================================================== constellations
@@ -180,7 +175,7 @@ class Constellation:
             raise ConfigError("constellation.prn", "a non-empty 1-D integer array", self.prn)
         if np.unique(prn).size != prn.size:
             raise ConfigError("constellation.prn", "unique satellite ids", prn.tolist())
-        object.__setattr__(self, "prn", _frozen_array(prn, dtype=int))
+        object.__setattr__(self, "prn", frozen_array(prn, dtype=int))
         m = prn.size
         for name in self._ELEMENTS:
             value = np.asarray(getattr(self, name), dtype=float)
@@ -190,7 +185,7 @@ class Constellation:
                 raise ConfigError(
                     f"constellation.{name}", f"{m} finite values (one per satellite)", value
                 )
-            object.__setattr__(self, name, _frozen_array(value))
+            object.__setattr__(self, name, frozen_array(value))
         if np.any(self.semi_major_axis_m <= 0.0):
             raise ConfigError(
                 "constellation.semi_major_axis_m", "positive values", self.semi_major_axis_m
@@ -879,7 +874,7 @@ class GnssState:
     multipath: np.ndarray
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "multipath", _frozen_array(self.multipath))
+        object.__setattr__(self, "multipath", frozen_array(self.multipath))
 
     @classmethod
     def initial(

@@ -109,6 +109,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cholesky, hilbert
 
 from ..errors import ConfigError
+from ._common import frozen_array
 
 __all__ = [
     "is_error_free",
@@ -667,12 +668,6 @@ class ImuErrorModel:
 # --------------------------------------------------------------------------------------
 
 
-def _frozen(arr: Any) -> NDArray[np.float64]:
-    out = np.array(arr, dtype=float)
-    out.setflags(write=False)
-    return out
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class ImuState:
     """Everything recursive in the IMU error model. Index 0 = gyro, 1 = accelerometer.
@@ -713,7 +708,7 @@ class ImuState:
             "quant_count": (2, MAX_ORDER + 1, 3),
         }
         for name, shape in shapes.items():
-            arr = _frozen(getattr(self, name))
+            arr = frozen_array(getattr(self, name))
             if arr.shape != shape:
                 raise ConfigError(f"state.{name}", f"shape {shape}", arr.shape)
             object.__setattr__(self, name, arr)

@@ -210,12 +210,6 @@ class OdometerModel:
         raise ConfigError("odometer.preset", f"one of {PRESET_NAMES}", name)
 
 
-def _frozen(value) -> NDArray[np.float64]:
-    arr = np.array(value, dtype=float)
-    arr.setflags(write=False)
-    return arr
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class OdometerState:
     """Everything recursive in the odometer model.
