@@ -259,6 +259,10 @@ class PaperEkfConfig:
     lever_arm : "auto" (the observables are the antenna's, at ``context.gnss.lever_arm_b_m``)
         or "none" (uncompensated: ranges and Dopplers predicted at the track point, as in
         the paper).
+    observer : True (default, the paper's filter) or False: the accelerometer observer
+        (13) switched off - between epochs the state follows (7)-(8) open loop with the
+        Riccati equation ``R' = A R + R A^T + Q`` (no gain, no Z_ax in (16)); the epoch
+        update (16) uses the pseudoranges and Dopplers alone. Everything else identical.
     """
 
     mode: str = "faithful"
@@ -270,6 +274,7 @@ class PaperEkfConfig:
     node_step_m: float = 10.0
     stiffness_limit: float = 0.5
     lever_arm: str = "auto"
+    observer: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in ("faithful", "extended"):
@@ -304,6 +309,8 @@ class PaperEkfConfig:
             raise ConfigError("stiffness_limit", "a number in (0, 2.5] (RK4 is stable below 2.78)", self.stiffness_limit)
         if self.lever_arm not in ("auto", "none"):
             raise ConfigError("lever_arm", "'auto' or 'none'", self.lever_arm)
+        if self.observer not in (True, False):
+            raise ConfigError("observer", "True or False", self.observer)
 
 
 # ============================================================================ track
@@ -572,6 +579,11 @@ class PaperEkf:
         "auto": compensate the antenna lever arm of ``context.gnss.lever_arm_b_m`` (a navsim
         extension, in both modes, active only when that arm is non-zero; see the module
         docstring); "none": predict the observables at the track point (003's eq. (2)).
+    observer : bool
+        True (default): the accelerometer observer (13) runs between epochs (14) and Z_ax
+        is stacked into (16) as configured; False: the same track-model filter on GNSS
+        alone (no (13): zero gain between epochs, ``R' = A R + R A^T + Q``), the ablation
+        of the paper's central claim.
 
     Notes
     -----
@@ -584,9 +596,10 @@ class PaperEkf:
     def __init__(self, mode: str = "faithful", as_printed: bool | Iterable[str] = False,
                  cov_step_s: float | None = None, input_model: str | None = None,
                  accel_in_update: bool | None = None, bias_states: str = "auto",
-                 node_step_m: float = 10.0, stiffness_limit: float = 0.5, lever_arm: str = "auto") -> None:
+                 node_step_m: float = 10.0, stiffness_limit: float = 0.5, lever_arm: str = "auto",
+                 observer: bool = True) -> None:
         self.config = PaperEkfConfig(mode, as_printed, cov_step_s, input_model, accel_in_update,
-                                     bias_states, node_step_m, stiffness_limit, lever_arm)
+                                     bias_states, node_step_m, stiffness_limit, lever_arm, observer)
         self._ready = False
 
     # ------------------------------------------------------------------ set-up
@@ -632,6 +645,9 @@ class PaperEkf:
             biases = imu.accel_bias_sigma > 0.0 or imu.gyro_bias_sigma > 0.0
         self._biases = biases
         self._accel_in_update = faithful if cfg.accel_in_update is None else bool(cfg.accel_in_update)
+        self._observer = bool(cfg.observer)
+        if not self._observer:  # no (13): Z_ax is not an observation anywhere
+            self._accel_in_update = False
         n = 5
         self._i_clk = n if self._clock else None
         n += 2 if self._clock else 0
@@ -1410,6 +1426,9 @@ class PaperEkf:
         """Coefficients at the current state for a covariance interval: (first stage
         values, hneg, H filled, gain K (list), rate |dH_a/dY K|)."""
         first, a_dyn, hneg, q_dyn, s4, sig2 = self._fused(self._Y, w, f, t)
+        if not self._observer:  # no (13): h = 0, S = 0 -> H = [[0, A^T], [A, Q]], K = 0
+            hneg = [0.0] * len(hneg)
+            s4 = 0.0
         H = self._h_matrix(a_dyn, hneg, q_dyn, s4, sig2)
         K, rate = self._gain(hneg, s4, sig2)
         return first, H, K, rate

@@ -1,0 +1,126 @@
+"""Seed 003 as the paper argues it: the observer ablation, the instants of the experiment
+table and the deterministic checks (noise-free open-loop propagation from the truth).
+
+Truths used: the simulator's exact motion (a noise-free IMU integrated by the filter model
+must stay on it), the Lyapunov equation of the covariance without (13) (the reference
+RK4 of :func:`navsim.estimators.paper_ekf._riccati_rk4` with zero observation), and the
+GNSS epoch times of the scenario.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navsim.episode import make_context, measurement_batch
+from navsim.estimators.paper_ekf import PaperEkf, _riccati_rk4, paper_state
+from navsim.paper.seed003 import _truth_state, gnss_epoch_times, outage_instants
+from navsim.scenario import load_scenario
+from navsim.simulator import Simulator
+
+
+def _ideal(duration):
+    return load_scenario("paper-2012").with_overrides({
+        "timing": {"duration_s": duration}, "imu": {"preset": "ideal"},
+        "outages": {"windows_s": [[0.0, duration + 1.0]]}})
+
+
+def test_outage_instants_pick_the_step_before_the_first_update():
+    t = np.round(np.arange(1, 1001) * 0.01, 10)  # steps ending at 0.01 .. 10.00 s
+    epochs = np.array([1.0, 2.0, 3.0, 7.0, 8.0])  # outage [4, 7): epochs 4, 5, 6 missing
+    i_pre, i_end = outage_instants(t, epochs, 4.0)
+    assert t[i_pre] == pytest.approx(3.0)  # the last update before the outage
+    assert t[i_end] == pytest.approx(6.99)  # not 7.00, which carries the first update
+    assert outage_instants(t, epochs[:3], 4.0)[1] == len(t) - 1  # no update after: the end
+
+
+def test_gnss_epoch_times_skip_the_outage():
+    sim = Simulator(load_scenario("paper-2012").with_overrides(
+        {"timing": {"duration_s": 12.0}, "outages": {"windows_s": [[4.0, 7.0]]}}))
+    sim.reset(0)
+    times = gnss_epoch_times(list(sim.chunks(500)))
+    assert 7.0 in times and 3.0 in times
+    assert not np.any((times >= 4.0) & (times < 7.0))
+
+
+def _from_truth(duration, **options):
+    sim = Simulator(_ideal(duration))
+    start = sim.reset(0)
+    ctx = make_context(sim)
+    chunks = list(sim.chunks(1000))
+    t, yt = _truth_state(ctx, chunks)
+    tr0 = sim.truth_at(np.array([0.0]))
+    y0 = paper_state(tr0.lat, tr0.lon, tr0.velocity_n, tr0.heading, tr0.pitch, tr0.roll, tr0.t, ctx.earth.rate)[0]
+    est = PaperEkf(**options)
+    est.reset(ctx, start.prior)
+    est._Y = [float(v) for v in y0]
+    prn = np.asarray(sim.constellation.prn)
+    ys = []
+    for c in chunks:
+        est.step_batch(measurement_batch(c, prn, ctx.nav_period_s))
+        ys.append(est.last_states[:, :5])
+    return np.concatenate(ys) - yt, ctx
+
+
+@pytest.mark.parametrize("input_model", ["polynomial", "mean"])
+def test_open_loop_filter_model_stays_on_the_truth(input_model):
+    """The deterministic check of the end-of-outage bias: (7)-(8) integrated open loop
+    (observer off) from the true state with a noise-free IMU. Measured over 100 s:
+    2e-8 m, 2e-12 m/s, 6e-15 rad - so the filter model and the truth agree (gravity,
+    Earth rate, specific force, sample timing) far below the outage drift of metres."""
+    e, ctx = _from_truth(20.0, observer=False, input_model=input_model)
+    assert np.max(np.abs(e[:, 3])) * ctx.earth.a < 1e-6
+    assert np.max(np.abs(e[:, 4])) < 1e-9
+    assert np.max(np.abs(e[:, :3])) < 1e-12
+
+
+def test_open_loop_with_printed_centrifugal_sign_drifts_as_predicted():
+    """The same check with the printed sign: V_Y' is off by 2 Omega^2 r cos(phi) sin(phi)."""
+    e, ctx = _from_truth(5.0, observer=False, as_printed="centrifugal")
+    from navsim.earth import SPHERICAL
+
+    phi = 0.8238  # latitude of the paper-2012 track, rad (47.2 deg)
+    dv = 2 * SPHERICAL.rate ** 2 * SPHERICAL.a * np.cos(phi) * np.sin(phi)
+    assert e[-1, 4] / 5.0 == pytest.approx(dv, rel=2e-3)
+
+
+def test_observer_off_covariance_is_the_lyapunov_equation():
+    """observer=False: one step of the covariance equals the RK4 of R' = A R + R A^T + Q
+    (the reference form with h = 0, S = 0), and the epoch update has no Z_ax row."""
+    sim = Simulator(load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 3.0}}))
+    start = sim.reset(1)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    chunk = sim.advance(150)
+    batch = measurement_batch(chunk, prn, ctx.nav_period_s)
+    one = PaperEkf(observer=False)
+    one.reset(ctx, start.prior)
+    p0, y0 = one._P.copy(), list(one._Y)
+    inp = one._prepare(chunk.imu.dtheta_r[:1], chunk.imu.dv_r[:1])[0].tolist()
+    A, _, Q, _, sig2, _ = one._coefficients(y0, inp[0:3], inp[3:6], 0.0)
+    expect = _riccati_rk4(p0, A, np.zeros(5), Q, np.zeros(5), sig2, ctx.nav_period_s)
+    got = one.step(batch.measurement(0)).extra["state_cov"]
+    # two code paths (quadratic form vs direct RK4): rounding relative to the correlation
+    # scale sqrt(P_ii P_jj) of each entry, not to the entry (off-diagonals near 1e-20)
+    scale = np.sqrt(np.outer(np.diag(expect), np.diag(expect)))
+    assert np.max(np.abs(got - expect) / scale) < 1e-12
+    # epochs: 2 m observables without the observer, 2 m + 1 with Z_ax stacked (faithful)
+    off, on = PaperEkf(observer=False), PaperEkf()
+    off.reset(ctx, start.prior)
+    on.reset(ctx, start.prior)
+    out_off, out_on = off.step_batch(batch), on.step_batch(batch)
+    j = int(chunk.gnss_step[0])
+    n_sat = int(np.asarray(chunk.gnss.valid[0]).sum())
+    assert out_off.nis_dof[j] == 2 * n_sat and out_on.nis_dof[j] == 2 * n_sat + 1
+    # (13) resolves one attitude axis within a second (to ~1e-5 rad); without it the
+    # attitude is seen only through the GNSS and stays near its prior after 1.5 s
+    low = [np.linalg.eigvalsh(e.last_state_cov[-1, :3, :3])[0] for e in (off, on)]
+    assert low[0] > 100 * low[1]
+
+
+def test_observer_option_validated():
+    from navsim.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        PaperEkf(observer="yes")
+    assert PaperEkf().config.observer is True
