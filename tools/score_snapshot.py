@@ -9,7 +9,7 @@ change and checks them after.
 ``snap`` runs :func:`navsim.episode.run_episode` for every registered estimator on every
 bundled scenario (seeds A..B-1, ``timing.duration_s`` = DURATION) and writes the flat
 scores (``EpisodeScore.to_flat_dict``) as JSON; an estimator that refuses a scenario is
-recorded with its error message. ``compare`` prints, per metric, the largest absolute and
+recorded with its error message. ``compare`` (timing figures left out) prints, per metric, the largest absolute and
 relative difference, counts the bit-identical values, and exits 1 when any difference
 exceeds ``--rtol`` (relative to the larger magnitude; 0 = bit for bit) or when the two
 snapshots hold different episodes or errors.
@@ -54,6 +54,10 @@ def snap(out: str, seeds: list[int], duration: float, estimator_names: list[str]
         json.dump({"seeds": seeds, "duration_s": duration, "rows": rows}, fh, indent=1, sort_keys=True)
 
 
+# Wall-clock and CPU figures differ from run to run; they are not scores of the estimate.
+TIMING_METRICS = frozenset({"cpu_total_s", "realtime_factor", "step_time_us"})
+
+
 def _num(v):
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
@@ -76,7 +80,7 @@ def compare(a_path: str, b_path: str, rtol: float) -> int:
                 print(f"{key}: error {ra.get('error')!r} -> {rb.get('error')!r}")
                 bad += 1
             continue
-        for m in sorted(set(ra) | set(rb)):
+        for m in sorted((set(ra) | set(rb)) - TIMING_METRICS):
             va, vb = _num(ra.get(m)), _num(rb.get(m))
             total += 1
             if va == vb or (isinstance(va, float) and isinstance(vb, float) and math.isnan(va) and math.isnan(vb)):
