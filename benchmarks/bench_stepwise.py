@@ -1,0 +1,312 @@
+"""Step-wise cost of the estimators and the FMUs against their batch and core references.
+
+Everything runs in one process on the bundled ``paper-2012`` scenario (0.01 s navigation
+step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
+
+1. **Estimators step by step.** For lc-ekf, tc-ekf, tc-ukf, along-track and paper-ekf, the
+   CPU time per navigation step (``time.process_time``)
+
+   * ``batch``: ``step_batch`` on the episode's chunks, the way
+     :func:`navsim.episode.run_episode` drives it (the reference);
+   * ``step``: ``Estimator.step`` on the same data as :class:`Measurement` objects;
+   * ``agent``: ``EstimatorAgent.act`` on the observations the env produced for the same
+     seed (decoding, ``step`` and the action), the README's Gymnasium loop without the
+     env's own cost.
+
+   ``agent / batch`` is the figure the issue sets a goal for (<= 1.5). The last column is
+   the largest position difference (m, local level) between the agent's solutions and
+   the batch solutions over the episode: the step path must give the numbers of
+   ``run_episode``.
+2. **FMU doStep** under fmpy (FMI 2), communication step = one navigation step: an empty
+   pythonfmu FMU (one output, ``do_step`` returns at once), the core's
+   ``Simulator.step()``, the plant FMU, and the estimator FMU (lc-ekf) fed with the plant's
+   outputs (only its ``doStep`` is timed). Goals: plant <= 2 x (empty + core step),
+   estimator <= 2 x (empty + the estimator's batch cost per step). These are rows only;
+   the FMU runtime is not changed here.
+3. **The README's Gymnasium loop** (``gym.make`` + ``EstimatorAgent(estimators.make("lc-ekf"))``)
+   over a whole episode against ``run_episode`` of the same scenario, estimator and seed
+   (both include the simulation), wall time, with the two episode scores.
+
+Timing: the rows of a table are timed in interleaved rounds and the median is printed;
+the machine may be shared, so the ratios (same process, same rounds) are the figures to
+trust.
+
+Usage: ``python benchmarks/bench_stepwise.py [--quick] [--rounds 3] [--duration 30]
+[--episode 1000] [--fmu-steps 2000] [--no-fmu]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+ESTIMATORS = ("lc-ekf", "tc-ekf", "tc-ukf", "along-track", "paper-ekf")
+
+
+def _position_error_m(a: np.ndarray, b: np.ndarray, earth) -> float:
+    """Largest local-level distance between two (n, 9) solution arrays, m."""
+    lat = a[:, 0]
+    r_n, r_e = earth.radii(lat)
+    dn = (a[:, 0] - b[:, 0]) * (np.asarray(r_n) + a[:, 2])
+    de = (a[:, 1] - b[:, 1]) * (np.asarray(r_e) + a[:, 2]) * np.cos(lat)
+    du = a[:, 2] - b[:, 2]
+    return float(np.max(np.sqrt(dn * dn + de * de + du * du)))
+
+
+def _episode_inputs(duration: float):
+    """(scenario, simulator start, context, batches, measurements, env observations, env info)."""
+    import gymnasium as gym
+
+    import navsim.envs  # noqa: F401  (registers the ids)
+    from navsim.episode import make_context, measurement_batch
+    from navsim.scenario import load_scenario
+    from navsim.simulator import Simulator
+
+    scenario = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": duration}})
+    sim = Simulator(scenario)
+    start = sim.reset(0)
+    context = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    dt = scenario.timing.nav_period_s
+    batches = [measurement_batch(chunk, prn, dt) for chunk in sim.chunks(10_000)]
+    meas = [b.measurement(i) for b in batches for i in range(len(b))]
+    env = gym.make("navsim/PaperRail-v0", timing={"duration_s": duration}, score=False)
+    obs, info = env.reset(seed=0)
+    observations = []
+    zero = np.zeros(9)
+    while True:
+        observations.append({k: np.array(v, copy=True) for k, v in obs.items()})
+        obs, _, terminated, truncated, _ = env.step(zero)
+        if terminated or truncated:
+            break
+    env.close()
+    return scenario, start, context, batches, meas, observations, info
+
+
+def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, float]]:
+    from navsim.envs import EstimatorAgent
+    from navsim.estimators import available, make
+
+    scenario, start, context, batches, meas, observations, info = _episode_inputs(duration)
+    n = len(meas)
+    names = [e for e in ESTIMATORS if e in available()]
+    times: dict[tuple[str, str], list[float]] = {}
+    solutions: dict[tuple[str, str], np.ndarray] = {}
+    clock = time.process_time
+    for _ in range(rounds):
+        for name in names:
+            est = make(name)
+            est.reset(context, start.prior)
+            t0 = clock()
+            out = [est.step_batch(b) for b in batches]
+            times.setdefault((name, "batch"), []).append((clock() - t0) / n)
+            solutions[(name, "batch")] = np.concatenate([o.solution for o in out])
+
+            est = make(name)
+            est.reset(context, start.prior)
+            step = est.step
+            t0 = clock()
+            for m in meas:
+                step(m)
+            times.setdefault((name, "step"), []).append((clock() - t0) / n)
+
+            agent = EstimatorAgent(make(name))
+            agent.reset(info)
+            act = agent.act
+            rows = []
+            t0 = clock()
+            for o in observations[:n]:
+                rows.append(act(o))
+            times.setdefault((name, "agent"), []).append((clock() - t0) / n)
+            solutions[(name, "agent")] = np.array(rows) * np.asarray(info["action_scale"])
+    lines = [f"paper-2012, {duration:g} s episode ({n} navigation steps), seed 0; CPU time per navigation "
+             f"step, median of {rounds} interleaved round(s)", "",
+             "| estimator | batch (us/step) | step (us/step) | agent (us/step) | step / batch | agent / batch "
+             "| max position difference agent vs batch (m) |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    batch_cost = {}
+    for name in names:
+        b, s, a = (statistics.median(times[(name, k)]) for k in ("batch", "step", "agent"))
+        batch_cost[name] = b
+        diff = _position_error_m(solutions[(name, "agent")], solutions[(name, "batch")], context.earth)
+        lines.append(f"| {name} | {b * 1e6:.1f} | {s * 1e6:.1f} | {a * 1e6:.1f} | {s / b:.2f} | {a / b:.2f} "
+                     f"| {diff:.1e} |")
+    lines += ["", "Goal (issue 11): agent / batch <= 1.5 for every row."]
+    return lines, batch_cost
+
+
+_EMPTY_SLAVE = textwrap.dedent('''\
+    from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+
+
+    class EmptyBench(Fmi2Slave):
+        """One output, nothing computed: the floor of a pythonfmu doStep."""
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self.y = 0.0
+            self.register_variable(Real("y", causality=Fmi2Causality.output))
+
+        def do_step(self, current_time, step_size):
+            return True
+    ''')
+
+
+def fmu_table(steps: int, rounds: int, lc_batch_s: float | None) -> list[str]:
+    from pythonfmu.builder import FmuBuilder
+
+    from navsim.fmu.build import build_fmu
+    from navsim.fmu.master import FmuInstance, _Plan
+    from navsim.scenario import load_scenario
+    from navsim.simulator import Simulator
+
+    scenario = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": steps * 0.01 + 1.0}})
+    dt = scenario.timing.nav_period_s
+    times: dict[str, list[float]] = {}
+    clock = time.perf_counter  # the FMU runs in this process; wall time of the calls
+    with tempfile.TemporaryDirectory() as tmp:
+        script = Path(tmp) / "empty_bench.py"
+        script.write_text(_EMPTY_SLAVE)
+        empty = FmuBuilder.build_FMU(script, dest=tmp)
+        plant_path = build_fmu(scenario, "plant", 2, Path(tmp) / "plant.fmu")
+        est_path = build_fmu(scenario, "estimator", 2, Path(tmp) / "est.fmu", estimator="lc-ekf")
+        for _ in range(rounds):
+            with FmuInstance(empty, "empty") as inst:
+                inst.initialize()
+                t0 = clock()
+                for k in range(steps):
+                    inst.do_step(k * dt, dt)
+                times.setdefault("empty", []).append((clock() - t0) / steps)
+            sim = Simulator(scenario)
+            t0 = clock()
+            sim.reset(0)
+            for _k in range(steps):
+                sim.step()  # buffers 1000 steps ahead: the generation is included
+            times.setdefault("core", []).append((clock() - t0) / steps)
+            plant = FmuInstance(plant_path, "plant")
+            est = FmuInstance(est_path, "estimator")
+            try:
+                plant.initialize({"seed": 0})
+                est.initialize({})
+                inputs = [n for n, v in est.variables.items() if v.causality == "input"]
+                src, dst = _Plan(plant, inputs), _Plan(est, inputs)
+
+                def push():
+                    raw = src.fetch()
+                    for t, (vrs, _) in dst.groups.items():
+                        est.set_raw(t, vrs, raw[t])
+
+                push()
+                plant_t = est_t = 0.0
+                for k in range(steps):
+                    t0 = clock()
+                    plant.do_step(k * dt, dt)
+                    t1 = clock()
+                    push()
+                    t2 = clock()
+                    est.do_step(k * dt, dt)
+                    t3 = clock()
+                    plant_t += t1 - t0
+                    est_t += t3 - t2
+                times.setdefault("plant", []).append(plant_t / steps)
+                times.setdefault("estimator", []).append(est_t / steps)
+            finally:
+                plant.free()
+                est.free()
+    med = {k: statistics.median(v) for k, v in times.items()}
+    floor_plant = med["empty"] + med["core"]
+    lines = [f"paper-2012, {steps} communication steps of {dt:g} s, FMI 2 under fmpy; wall time per doStep, "
+             f"median of {rounds} round(s)", "",
+             "| case | us per step | reference | ratio | goal |", "|---|---:|---|---:|---:|",
+             f"| empty pythonfmu FMU doStep | {med['empty'] * 1e6:.1f} | | | |",
+             f"| core Simulator.step() | {med['core'] * 1e6:.1f} | | | |",
+             f"| plant FMU doStep | {med['plant'] * 1e6:.1f} | empty + core step = {floor_plant * 1e6:.1f} us "
+             f"| {med['plant'] / floor_plant:.2f} | <= 2 |"]
+    if lc_batch_s is not None:
+        floor_est = med["empty"] + lc_batch_s
+        lines.append(f"| estimator FMU (lc-ekf) doStep | {med['estimator'] * 1e6:.1f} | empty + lc-ekf batch = "
+                     f"{floor_est * 1e6:.1f} us | {med['estimator'] / floor_est:.2f} | <= 2 |")
+    else:
+        lines.append(f"| estimator FMU (lc-ekf) doStep | {med['estimator'] * 1e6:.1f} | | | |")
+    lines += ["", "The lc-ekf batch cost is the CPU time per step of the table above; the FMU rows are wall "
+              "time of calls made in this process."]
+    return lines
+
+
+def gym_table(duration: float) -> list[str]:
+    import gymnasium as gym
+
+    import navsim.envs  # noqa: F401
+    from navsim import estimators
+    from navsim.envs import EstimatorAgent
+    from navsim.episode import run_episode
+    from navsim.metrics import score_episode
+    from navsim.scenario import load_scenario
+
+    clock = time.perf_counter
+    t0 = clock()
+    env = gym.make("navsim/PaperRail-v0", timing={"duration_s": duration})
+    agent = EstimatorAgent(estimators.make("lc-ekf"))
+    obs, info = env.reset(seed=0)
+    agent.reset(info)
+    steps = 0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(agent.act(obs))
+        steps += 1
+        if terminated or truncated:
+            break
+    gym_s = clock() - t0
+    gym_rmse = info["episode_score"].horizontal_rmse_m
+    env.close()
+    scenario = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": duration}})
+    t0 = clock()
+    record = run_episode(scenario, estimators.make("lc-ekf"), seed=0)
+    run_s = clock() - t0
+    run_rmse = score_episode(record).to_flat_dict()["horizontal_rmse_m"]
+    return [f"The README's Gymnasium loop with lc-ekf on navsim/PaperRail-v0, {duration:g} s episode "
+            f"({steps} steps), seed 0, wall time including the simulation", "",
+            "| path | s | steps/s | x run_episode | horizontal RMSE (m) |", "|---|---:|---:|---:|---:|",
+            f"| run_episode (batch) | {run_s:.2f} | {steps / run_s:,.0f} | 1.00 | {run_rmse:.6f} |",
+            f"| gym.make + EstimatorAgent | {gym_s:.2f} | {steps / gym_s:,.0f} | {gym_s / run_s:.2f} "
+            f"| {gym_rmse:.6f} |"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="short episodes, one round")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--duration", type=float, default=30.0, help="episode length of the estimator table, s")
+    ap.add_argument("--episode", type=float, default=1000.0, help="episode length of the Gymnasium loop, s")
+    ap.add_argument("--fmu-steps", type=int, default=2000, help="communication steps per FMU row (>= 1000: "
+                    "the simulator buffers 1000 steps ahead)")
+    ap.add_argument("--no-fmu", action="store_true", help="leave out the FMU table")
+    args = ap.parse_args()
+    if args.quick:
+        args.rounds, args.duration, args.episode, args.fmu_steps = 1, 10.0, 20.0, 1000
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"load average {load:.2f} on {os.cpu_count()} cores")
+    print()
+    print("### Estimators: step-wise against batch")
+    print()
+    lines, batch_cost = estimator_table(args.duration, args.rounds)
+    print("\n".join(lines))
+    if not args.no_fmu:
+        print()
+        print("### FMU doStep")
+        print()
+        print("\n".join(fmu_table(args.fmu_steps, args.rounds, batch_cost.get("lc-ekf"))))
+    print()
+    print("### Gymnasium loop against run_episode")
+    print()
+    print("\n".join(gym_table(args.episode)))
+
+
+if __name__ == "__main__":
+    main()
