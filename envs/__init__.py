@@ -20,13 +20,24 @@ native vector implementation (:class:`NavigationVectorEnv`):
 
 ``gym.make(id, **kwargs)`` takes scenario overrides as nested dicts
 (``timing={"duration_s": 60}``); the resolved scenario (name, config hash, TOML) is in
-the reset info. Without importing navsim.envs first, ``gym.make("navsim.envs:navsim/PaperRail-v0")``
-imports and registers in one call.
+the reset info.
+
+Registration (Gymnasium 1.x has no plugin discovery: an id exists once a module called
+``gymnasium.register``): ``import navsim.envs`` registers; so does ``import navsim`` in
+either order with ``import gymnasium`` (:mod:`navsim._gymhook`); without importing navsim
+at all, ``gym.make("navsim.envs:navsim/PaperRail-v0")`` imports and registers in one call.
 
 The core (``navsim``) never imports Gymnasium; this package is the only one that does.
 """
 
 from __future__ import annotations
+
+try:
+    import gymnasium  # noqa: F401
+except ImportError:  # the core installs without the Gymnasium face's extra
+    from navsim.errors import DependencyNotInstalled
+
+    raise DependencyNotInstalled("gymnasium", "gym") from None
 
 from navsim.scenario import list_scenarios
 

@@ -46,10 +46,9 @@ Missing data
 
 from __future__ import annotations
 
-import sys
 from importlib.metadata import PackageNotFoundError, version
 
-from . import earth, errors, rotations
+from . import _gymhook, earth, errors, rotations
 
 try:
     __version__ = version("navsim-track")
@@ -58,16 +57,10 @@ except PackageNotFoundError:  # running from a source tree without installation
 
 __all__ = ["earth", "errors", "rotations", "evaluate", "__version__"]
 
-# The core never imports Gymnasium. When the user has imported it already
-# (``import gymnasium as gym, navsim``), register the navsim env ids now, at no cost;
-# otherwise ``import navsim.envs`` registers them.
-if "gymnasium" in sys.modules:
-    try:
-        from .envs import register_envs as _register_envs
-    except ImportError:  # pragma: no cover - a broken optional install must not break the core
-        pass
-    else:
-        _register_envs()
+# The core never imports Gymnasium. The navsim env ids are registered now if it is
+# imported already (``import gymnasium as gym, navsim``), else as soon as it is
+# (``import navsim, gymnasium``); ``import navsim.envs`` registers them too.
+_gymhook.install()
 
 
 def __getattr__(name: str):

@@ -315,7 +315,10 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
 
 def load_campaign(path: str | Path) -> CampaignSpec:
     """Read and validate a campaign TOML file (see the module docstring)."""
-    import tomllib
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
 
     path = Path(path)
     if not path.is_file():

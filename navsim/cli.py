@@ -2,6 +2,7 @@
 
 Sub-commands
 ------------
+``navsim --version``                         print the installed version
 ``navsim scenarios``                         list the bundled scenarios
 ``navsim show SCENARIO``                     print the resolved scenario as TOML
 ``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
@@ -28,7 +29,10 @@ __all__ = ["main"]
 
 def _parse_overrides(items: list[str]) -> dict:
     """``--set timing.duration_s=10`` -> {"timing": {"duration_s": 10.0}} (TOML values)."""
-    import tomllib
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
 
     out: dict = {}
     for item in items:
@@ -141,7 +145,10 @@ def _fmt(value) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     parser = argparse.ArgumentParser(prog="navsim", description=__doc__.split("\n")[0])
+    parser.add_argument("--version", action="version", version=f"navsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     sub.add_parser("scenarios", help="list the bundled scenarios").set_defaults(func=_cmd_scenarios)

@@ -1,6 +1,11 @@
 """Scenario configuration: validation messages, TOML round trip, overrides."""
 
-import tomllib
+import sys
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10
+    import tomli as tomllib
 
 import pytest
 

@@ -14,7 +14,12 @@ import dataclasses
 import hashlib
 import json
 import math
-import tomllib
+import sys
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10
+    import tomli as tomllib
 
 import numpy as np
 import pytest
