@@ -18,7 +18,10 @@ from typing import Iterator
 
 import numpy as np
 
-from .estimators.base import (
+from .scenario import Scenario
+from .sensors import imu as imu_mod
+from .simulator import Chunk, Simulator
+from .types import (
     Context,
     Estimate,
     GnssObservation,
@@ -27,10 +30,8 @@ from .estimators.base import (
     NominalGnss,
     NominalImu,
     NominalOdometer,
+    Prior,
 )
-from .scenario import Scenario
-from .sensors import imu as imu_mod
-from .simulator import Chunk, Prior, Simulator
 
 __all__ = ["make_context", "measurements", "EpisodeRecord", "run_episode"]
 

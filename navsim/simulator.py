@@ -51,6 +51,7 @@ from .motion import (
     true_state,
 )
 from .scenario import Scenario
+from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
 from .truthgen import TruthGenerator
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
@@ -183,26 +184,6 @@ class ChunkBatch:
             **{f: getattr(self.odometer, f)[j] for f in type(self.odometer).__slots__})
         return Chunk(step0=self.step0, t=self.t, truth=self.truth, imu=imu, gnss=gnss, gnss_step=self.gnss_step,
                      receiver_outage=self.receiver_outage[j], odometer=odometer)
-
-
-@dataclass(frozen=True, slots=True)
-class Prior:
-    """The initial estimate handed to estimators: truth plus a drawn error.
-
-    ``covariance`` (9, 9) is diagonal over [position ENU (m), velocity ENU (m/s),
-    attitude small angles (rad) about ENU axes], from the scenario's
-    ``initial`` section; the error actually drawn is kept out of this object.
-    """
-
-    t: float
-    lat: float
-    lon: float
-    h: float
-    velocity_n: np.ndarray
-    heading: float
-    pitch: float
-    roll: float
-    covariance: np.ndarray
 
 
 @dataclass(frozen=True, slots=True)

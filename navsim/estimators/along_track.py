@@ -61,7 +61,7 @@ function of ``s`` through the map::
 (``u_i`` unit line of sight receiver -> satellite, ``t_e`` the ECEF tangent). One
 satellite suffices without a clock, two with it: the map makes the problem 1-D.
 
-``"fix"``: the least-squares point fix (:func:`navsim.sensors.gnss.least_squares_fix`,
+``"fix"``: the least-squares point fix (:func:`navsim.receiver.least_squares_fix`,
 four satellites or more) projected on the track (``s`` minimising the distance to the
 fix, Newton on ``t_e . (r_fix - r_e(s)) = 0``), with variance ``t_e^T Sigma_fix t_e``;
 and, with ``use_doppler``, the velocity fix projected on the tangent. The clock is
@@ -688,7 +688,7 @@ class AlongTrackFilter:
                 rs.append(np.full(m, self.sigma_rate**2))
             H, y, R = np.vstack(rows), np.concatenate(ys), np.concatenate(rs)
         else:
-            from ..sensors.gnss import least_squares_fix, velocity_fix
+            from ..receiver import least_squares_fix, velocity_fix
 
             table = self.table
             r_guess = table.position_e(s)

@@ -2,8 +2,8 @@
 
 :class:`GnssLeastSquares`
     At each epoch with at least ``min_satellites`` valid channels: the position / clock
-    fix :func:`navsim.sensors.gnss.least_squares_fix` and the velocity / clock-drift fix
-    :func:`navsim.sensors.gnss.velocity_fix` (the receiver clock is estimated every
+    fix :func:`navsim.receiver.least_squares_fix` and the velocity / clock-drift fix
+    :func:`navsim.receiver.velocity_fix` (the receiver clock is estimated every
     epoch, so it needs no model). Between epochs (and through outages) the last fix is
     **extrapolated with the last velocity fix** (``extrapolate=True``, the default;
     ``False`` holds it). Covariance: ``sigma_rho^2 (H^T H)^-1`` and

@@ -8,12 +8,12 @@ state is zero between updates and only the covariance is propagated.
 
 Measurements, at every GNSS epoch with at least ``min_satellites`` valid channels:
 
-* position: the single-epoch least-squares fix :func:`navsim.sensors.gnss.least_squares_fix`
+* position: the single-epoch least-squares fix :func:`navsim.receiver.least_squares_fix`
   (position and receiver clock bias, so a receiver clock error is absorbed whether or not
   ``context.gnss.clock_modelled``), as ``y = mat_en (r_ins_e - r_fix_e) = dr + v``;
   ``R = sigma_rho^2 mat_en (H^T H)^-1_pos mat_en^T`` from the fix geometry and the nominal
   pseudorange sigma;
-* velocity (``use_velocity``): :func:`navsim.sensors.gnss.velocity_fix` from the Doppler
+* velocity (``use_velocity``): :func:`navsim.receiver.velocity_fix` from the Doppler
   pseudorange rates (velocity and clock drift), ``y = v_ins_n - mat_en v_fix_e``,
   ``R = sigma_dot^2 mat_en (H^T H)^-1_vel mat_en^T``.
 
@@ -156,7 +156,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ..sensors.gnss import least_squares_fix, velocity_fix
+from ..receiver import least_squares_fix, velocity_fix
 from ..rotations import mat_nb_from_hpr, quat_to_mat
 from ._inserror import (
     NAV,
