@@ -77,14 +77,27 @@ class SpeedProfile(Protocol):
 
 @dataclass(frozen=True, slots=True)
 class ConstantSpeed:
-    """s(t) = s0 + speed * t."""
+    """s(t) = s0 + speed * t, optionally with a harmonic speed variation.
+
+    With ``amplitude`` A (m/s) and ``period`` T (s) the speed is ``v(t) = speed + A sin(2 pi
+    t / T)``, so ``s(t) = s0 + speed t + A T / (2 pi) (1 - cos(2 pi t / T))`` and the
+    along-track acceleration ``a(t) = 2 pi A / T cos(2 pi t / T)`` (amplitude 2 pi A / T;
+    smooth, no breakpoints). A = 0 (default) is the constant speed, number for number.
+    """
 
     speed: float
     s0: float = 0.0
+    amplitude: float = 0.0
+    period: float = 300.0
 
     def evaluate(self, t):
         t = np.asarray(t, dtype=float)
-        return self.s0 + self.speed * t, np.full_like(t, self.speed), np.zeros_like(t)
+        if self.amplitude == 0.0:
+            return self.s0 + self.speed * t, np.full_like(t, self.speed), np.zeros_like(t)
+        w = 2.0 * math.pi / self.period
+        arg = w * t
+        s = self.s0 + self.speed * t + self.amplitude / w * (1.0 - np.cos(arg))
+        return s, self.speed + self.amplitude * np.sin(arg), self.amplitude * w * np.cos(arg)
 
     @property
     def end_time(self) -> float:

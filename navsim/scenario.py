@@ -168,7 +168,9 @@ class OscillationConfig:
 class MotionConfig:
     """Along-track motion.
 
-    ``profile``: ``"constant"`` (``speed_mps`` from ``start_s_m``), ``"timetable"``
+    ``profile``: ``"constant"`` (``speed_mps`` from ``start_s_m``, plus the harmonic
+    variation ``speed_amplitude_mps * sin(2 pi t / speed_period_s)`` when the amplitude is
+    non-zero), ``"timetable"``
     (``stations`` with ``cruise_speed_mps``, ``max_accel_mps2``, ``max_decel_mps2``,
     ``jerk_time_s``) or ``"external"`` (samples pushed step by step; ``start_s_m`` and
     ``speed_mps`` give the initial state).
@@ -176,6 +178,8 @@ class MotionConfig:
 
     profile: str = "constant"
     speed_mps: float = 20.0
+    speed_amplitude_mps: float = 0.0
+    speed_period_s: float = 300.0
     start_s_m: float = 0.0
     stations: tuple[StationConfig, ...] = ()
     cruise_speed_mps: float = 25.0
@@ -191,6 +195,12 @@ class MotionConfig:
             raise ConfigError("motion.stations", "at least two stations for a timetable", len(self.stations))
         if self.start_s_m < 0:
             raise ConfigError("motion.start_s_m", "an arc length >= 0", self.start_s_m)
+        if not (self.speed_period_s > 0 and math.isfinite(self.speed_period_s)):
+            raise ConfigError("motion.speed_period_s", "a positive period (s)", self.speed_period_s)
+        if not (math.isfinite(self.speed_amplitude_mps) and abs(self.speed_amplitude_mps) < abs(self.speed_mps)
+                or self.speed_amplitude_mps == 0.0):
+            raise ConfigError("motion.speed_amplitude_mps", "a finite amplitude below |speed_mps| (no reversal)",
+                              self.speed_amplitude_mps)
 
 
 @dataclass(frozen=True, slots=True)
@@ -383,7 +393,8 @@ class Scenario:
         return path if path.is_absolute() or not self.base_dir else Path(self.base_dir) / path
 
 
-_HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]),)
+_HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]), ("motion", "speed_amplitude_mps", 0.0),
+                         ("motion", "speed_period_s", 300.0))
 
 _OMIT_SECTION_IF_DEFAULT = (("odometer", OdometerConfig()),)
 """Sections added after scenarios were first published, left out of :meth:`Scenario.to_dict`

@@ -215,7 +215,8 @@ def build_profile(scenario: Scenario):
     """The scenario's speed profile (a fresh :class:`ExternalMotion` for "external")."""
     m = scenario.motion
     if m.profile == "constant":
-        return ConstantSpeed(speed=m.speed_mps, s0=m.start_s_m)
+        return ConstantSpeed(speed=m.speed_mps, s0=m.start_s_m, amplitude=m.speed_amplitude_mps,
+                             period=m.speed_period_s)
     if m.profile == "timetable":
         return Timetable(
             stations=tuple(Station(s=st.s_m, dwell=st.dwell_s) for st in m.stations),

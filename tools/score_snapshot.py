@@ -68,9 +68,13 @@ def compare(a_path: str, b_path: str, rtol: float) -> int:
     with open(b_path, encoding="utf-8") as fh:
         b = json.load(fh)["rows"]
     bad = 0
-    if set(a) != set(b):
-        print("episodes differ:", sorted(set(a) ^ set(b)))
+    if set(a) - set(b):  # an episode of A is missing in B: a failure
+        print("episodes missing in B:", sorted(set(a) - set(b)))
         bad += 1
+    new = sorted(set(b) - set(a))
+    if new:  # new scenarios or estimators of B: reported, not compared (no reference)
+        names = sorted({"|".join(k.split("|")[:2]) for k in new})
+        print(f"new in B, not compared ({len(new)} episodes):", ", ".join(names))
     per_metric: dict[str, list[float]] = {}
     identical = total = 0
     for key in sorted(set(a) & set(b)):

@@ -26,6 +26,7 @@ _REGISTRY: dict[str, str] = {
     "tc-ekf": "navsim.estimators.tightly:TightlyCoupledEkf",
     "tc-ukf": "navsim.estimators.tightly:TightlyCoupledUkf",
     "along-track": "navsim.estimators.along_track:AlongTrackFilter",
+    "full-state-ekf": "navsim.estimators.full_state:FullStateEkf",
 }
 
 

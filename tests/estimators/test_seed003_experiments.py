@@ -124,3 +124,47 @@ def test_observer_option_validated():
     with pytest.raises(ConfigError):
         PaperEkf(observer="yes")
     assert PaperEkf().config.observer is True
+
+
+# ---------------------------------------------------------------------------- scenario variants
+def test_harmonic_speed_profile_against_finite_differences():
+    from navsim.motion import ConstantSpeed
+
+    prof = ConstantSpeed(20.0, s0=5.0, amplitude=5.0, period=300.0)
+    t = np.linspace(0.0, 1000.0, 2001)
+    s, v, a = prof.evaluate(t)
+    h = 1e-3
+    sp, vp, _ = prof.evaluate(t + h)
+    sm, vm, _ = prof.evaluate(t - h)
+    np.testing.assert_allclose((sp - sm) / (2 * h), v, rtol=0, atol=1e-7)  # central differences, s ~ 2e4 m
+    np.testing.assert_allclose((vp - vm) / (2 * h), a, rtol=0, atol=1e-8)
+    assert s[0] == 5.0 and v.min() == pytest.approx(15.0) and v.max() == pytest.approx(25.0)
+    assert np.abs(a).max() == pytest.approx(2 * np.pi * 5.0 / 300.0)
+    plain = ConstantSpeed(20.0, s0=5.0)
+    assert all(np.array_equal(x, y) for x, y in zip(ConstantSpeed(20.0, 5.0, 0.0).evaluate(t), plain.evaluate(t)))
+
+
+def test_bundled_variants_as_documented():
+    from navsim.scenario import list_scenarios
+
+    assert {"paper-2012-accelerating", "paper-2012-one-satellite"} <= set(list_scenarios())
+    sim = Simulator(load_scenario("paper-2012-accelerating"))
+    tr = sim.truth_at(np.linspace(0.0, 1000.0, 4001))
+    assert 14.99 < tr.speed.min() < 15.01 and 24.99 < tr.speed.max() < 25.01
+    assert tr.s[-1] < sim.track.length  # stays on the 24-km track
+    sim = Simulator(load_scenario("paper-2012-one-satellite").with_overrides(
+        {"timing": {"duration_s": 1000.0}, "outages": {"windows_s": []}, "imu": {"preset": "ideal"}}))
+    sim.reset(0)
+    prn = np.asarray(sim.constellation.prn)
+    for chunk in sim.chunks(25_000):
+        valid = np.asarray(chunk.gnss.valid)
+        assert np.all(valid.sum(axis=1) == 1) and set(prn[valid.any(axis=0)]) == {18}
+        k = np.asarray(chunk.gnss_step)
+        lat, lon = chunk.truth.lat[k], chunk.truth.lon[k]
+        sp, cp, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+        d = chunk.gnss.sat_pos_e[:, prn == 18, :][:, 0] - chunk.truth.position_e[k]
+        up = np.stack([cp * cl, cp * sl, sp], -1)
+        north = np.stack([-sp * cl, -sp * sl, cp], -1)
+        el = np.degrees(np.arcsin(np.sum(d * up, 1) / np.linalg.norm(d, axis=1)))
+        assert np.all((el > 50.0) & (el < 61.0))
+        assert np.all(np.sum(d * north, 1) < 0)  # to the south: along the northbound track
