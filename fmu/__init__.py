@@ -11,7 +11,10 @@ Export (FMI 2.0 through pythonfmu, FMI 3.0 through pythonfmu3; ``navsim fmu buil
     needs.
 Run (fmpy)
     :class:`~navsim.fmu.master.FmuInstance` and :func:`cosimulate` (plant + estimator
-    FMUs, Gauss-Seidel master, an :class:`~navsim.episode.EpisodeRecord` to score).
+    FMUs under a Gauss-Seidel or Jacobi master, an :class:`~navsim.episode.EpisodeRecord`
+    to score). The estimator FMU reads the plant's step counter, so any fixed-step master
+    gives run_episode's numbers, lagged one step under Jacobi (see
+    :mod:`navsim.fmu.runtime`).
 Import
     :class:`~navsim.fmu.motion.FmuMotionSource` steps an external co-simulation FMU (for
     example a train-dynamics model) and feeds its arc length, speed and acceleration to

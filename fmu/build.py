@@ -57,8 +57,18 @@ What a host needs to run a navsim FMU
       PYTHONHOME=/path/to/venv-base PYTHONPATH=/path/to/venv/lib/python3.11/site-packages host ...
   (on Windows: put pythonXY.dll's folder on PATH).
 * Binaries are included for linux64/x86_64-linux and win64/x86_64-windows.
-* Communication step: a whole number of simulator ticks (the estimator FMU: exactly one
-  navigation step); any other step is refused with an error status and a log message.
+* Communication step: a whole number of simulator ticks; the estimator FMU's at most one
+  navigation step (the plant composes the increments of several steps into one, which an
+  estimator cannot take step by step); any other step is refused with an error status and
+  a log message.
+* Masters: connect every estimator input to the plant output of the same name (time.step
+  and time.t_s included). Any fixed-step master works: Gauss-Seidel stepping the plant
+  first gives the estimate of the step just ended (nav.lag_steps = 0); Jacobi (libcosim,
+  ECOS, most masters) or Gauss-Seidel stepping the estimator first gives the estimate of
+  the previous step (nav.lag_steps = 1). nav.t_s always says the time the estimate refers
+  to: compare it with truth at nav.t_s. The estimator reads the plant's step counter and
+  takes each plant step once and in order; skipped, repeated or stale data (a missed
+  transfer, time.step not connected) are refused with an error status and a log line.
 * The variables navsim.version, navsim.build_version, navsim.config_hash and
   navsim.scenario (calculated parameters) say what ran: log them.
 """
@@ -284,7 +294,10 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
             raise ConfigError("--estimator", f"an installed estimator {estimators.available()}", estimator)
         meta.update(estimator=estimator, estimator_options=estimator_options)
         table = estimator_variables(dims, {"estimator.name": estimator, "estimator.options": estimator_options})
-        text = f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its uncertainty"
+        text = (f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its "
+                f"uncertainty. Connect every input to the plant output of the same name (time.step included); "
+                f"any fixed-step master with h <= {scenario.timing.nav_period_s!r} s: nav.t_s is the time the "
+                f"solution refers to (one navigation step behind under a Jacobi master, nav.lag_steps)")
     text += ". Needs a Python with navsim and numpy (see documentation/index.html)."
     identifier = MODEL_IDENTIFIERS[what]
     module = f"navsim_{what}_fmi{fmi}"

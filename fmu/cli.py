@@ -5,7 +5,7 @@
     overrides the scenario before embedding it).
 ``navsim fmu validate FILE.fmu ...``
     fmpy's validation; exit status 1 when a problem is found.
-``navsim fmu cosim PLANT.fmu ESTIMATOR.fmu --seed N``
+``navsim fmu cosim PLANT.fmu ESTIMATOR.fmu --seed N [--master plant-first|estimator-first|jacobi]``
     run the two FMUs connected (Python master over fmpy) and print the episode score.
 ``navsim fmu run SCENARIO --motion-fmu TRAIN.fmu --motion-map s=s,speed=v,accel=a
 --motion-input F_traction=2e5 --estimator NAME --seed N``
@@ -79,7 +79,8 @@ def _cmd_validate(args) -> int:
 def _cmd_cosim(args) -> int:
     from .master import cosimulate
 
-    record = cosimulate(args.plant, args.estimator_fmu, seed=args.seed, steps=args.steps, name="fmu")
+    record = cosimulate(args.plant, args.estimator_fmu, seed=args.seed, steps=args.steps, name="fmu",
+                        master=args.master)
     _print_score(record)
     return 0
 
@@ -135,6 +136,9 @@ def add_fmu_parser(subparsers) -> None:
     p.add_argument("estimator_fmu")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--steps", type=int, default=None, help="stop after this many navigation steps")
+    p.add_argument("--master", choices=("plant-first", "estimator-first", "jacobi"), default="plant-first",
+                   help="order of each step: Gauss-Seidel plant first (default), estimator first, or Jacobi "
+                        "(the last two: the estimate refers to the previous step)")
     p.set_defaults(func=_cmd_cosim)
 
     p = sub.add_parser("run", help="run an episode driven by an external motion FMU; print the score")

@@ -3,9 +3,11 @@
 :class:`FmuInstance` wraps one fmpy co-simulation instance (FMI 2 or FMI 3) with
 name-based, type-grouped access to its variables and a log that keeps every message.
 :func:`cosimulate` connects a navsim plant FMU and estimator FMU by variable name and
-runs one episode with a Gauss-Seidel master (plant step, then the estimator on that
-step's sensor data), returning a :class:`navsim.episode.EpisodeRecord` built only from
-FMU outputs, which :func:`navsim.metrics.score_episode` scores as ``navsim run`` does.
+runs one episode under a fixed-step master of the chosen order (Gauss-Seidel plant
+first, the default; Gauss-Seidel estimator first; Jacobi), returning a
+:class:`navsim.episode.EpisodeRecord` built only from FMU outputs, each estimate beside
+the truth of the step it refers to (``nav.t_s``), which
+:func:`navsim.metrics.score_episode` scores as ``navsim run`` does.
 
 Examples
 --------
@@ -26,7 +28,7 @@ import numpy as np
 
 from navsim.errors import DependencyNotInstalled, NavsimError
 
-__all__ = ["FmuInstance", "FmuCallError", "cosimulate", "plant_scenario"]
+__all__ = ["FmuInstance", "FmuCallError", "cosimulate", "plant_scenario", "MASTERS"]
 
 
 class FmuCallError(NavsimError):
@@ -287,22 +289,40 @@ def plant_scenario(plant: FmuInstance, parameters: dict | None = None):
     return effective_scenario(base, params)
 
 
+MASTERS = ("plant-first", "estimator-first", "jacobi")
+
+
 def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, *,
                plant_parameters: dict | None = None, estimator_parameters: dict | None = None,
-               steps: int | None = None, name: str = "", progress=None):
+               steps: int | None = None, name: str = "", progress=None, master: str = "plant-first"):
     """Run one episode of a navsim plant FMU and estimator FMU connected by name.
 
-    Gauss-Seidel master over fmpy: at each navigation step the plant steps first, its
-    outputs go to the estimator's inputs of the same name, then the estimator steps. The
-    returned :class:`~navsim.episode.EpisodeRecord` holds the plant's truth, GNSS
-    availability and prior and the estimator's solution, covariance and NIS, all read
-    from FMU outputs; ``step_time_s`` is the CPU time of the estimator FMU's ``doStep``
+    ``master`` picks the order of each communication step of one navigation step (every
+    estimator input is fed by the plant output of the same name):
+
+    ``"plant-first"`` (Gauss-Seidel, the default)
+        the plant steps, its outputs go to the estimator, then the estimator steps: the
+        estimate of step k is ready at the end of step k (the numbers of ``run_episode``).
+    ``"estimator-first"`` (Gauss-Seidel, the other order) and ``"jacobi"``
+        both FMUs step on the values exchanged at the start of the step (Jacobi: both
+        step, then all outputs are exchanged): the estimator processes plant step k one
+        communication step later (``nav.lag_steps`` = 1), and the episode's last plant
+        step is never processed.
+
+    The returned :class:`~navsim.episode.EpisodeRecord` holds, for each plant step the
+    estimator processed (``nav.step``), the plant's truth of that step and the estimate
+    that refers to it (``nav.t_s``), so every master gives the same record up to the
+    lagged master's missing last step; GNSS availability and the prior come from the
+    plant's outputs. ``step_time_s`` is the CPU time of the estimator FMU's ``doStep``
     (FMI overhead included).
     """
-    from navsim.episode import EpisodeRecord
     from navsim.earth import earth_model
+    from navsim.episode import EpisodeRecord
+    from navsim.errors import ConfigError
     from navsim.simulator import Prior
 
+    if master not in MASTERS:
+        raise ConfigError("master", f"one of {MASTERS}", master)
     plant = FmuInstance(plant_fmu, "plant")
     est = FmuInstance(estimator_fmu, "estimator")
     try:
@@ -335,24 +355,36 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
                       h=float(sensors["prior.h_m"]), velocity_n=np.asarray(sensors["prior.velocity_n"], float),
                       heading=float(sensors["prior.heading_rad"]), pitch=float(sensors["prior.pitch_rad"]),
                       roll=float(sensors["prior.roll_rad"]), covariance=_prior_covariance(scenario))
-        rows_truth, rows_nav, cpu = [], [], np.zeros(n)
-        gnss_t, n_valid, rx_out = [], [], []
+        rows_truth, rows_nav, cpu = [], [], []
+        epochs = []  # (plant step, t, n_valid, receiver outage)
         clock = time.process_time
-        for k in range(n):
-            t = k * dt
-            plant.do_step(t, dt)
-            sensors = push()
-            truth = truth_plan.unpack(truth_plan.fetch())
+
+        def step_estimator(t):
             c0 = clock()
             est.do_step(t, dt)
             nav = nav_plan.unpack(nav_plan.fetch())
-            cpu[k] = clock() - c0
-            rows_truth.append(truth)
-            rows_nav.append(nav)
+            spent = clock() - c0
+            if nav["nav.step"] == len(rows_nav) + 1:
+                rows_nav.append(nav)
+                cpu.append(spent)
+
+        def step_plant(t):
+            plant.do_step(t, dt)
+            rows_truth.append(truth_plan.unpack(truth_plan.fetch()))
+
+        for k in range(n):
+            t = k * dt
+            if master == "plant-first":
+                step_plant(t)
+                sensors = push()
+                step_estimator(t)
+            else:  # estimator-first and Jacobi: both step on the values exchanged at t
+                step_estimator(t)
+                step_plant(t)
+                sensors = push()
             if sensors["gnss.new_epoch"]:
-                gnss_t.append(float(sensors["gnss.t_s"]))
-                n_valid.append(int(sensors["gnss.n_valid"]))
-                rx_out.append(bool(sensors["gnss.receiver_outage"]))
+                epochs.append((k, float(sensors["gnss.t_s"]), int(sensors["gnss.n_valid"]),
+                               bool(sensors["gnss.receiver_outage"])))
             if progress is not None:
                 progress(1)
         hash_out = plant.get(["navsim.config_hash"])["navsim.config_hash"]
@@ -364,21 +396,28 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
         plant.free()
         est.free()
 
+    m = len(rows_nav)  # plant steps processed: n, or n - 1 under a lagged master
+    rows_truth = rows_truth[:m]
+    epochs = [e for e in epochs if e[0] < m]
+
     def col(rows, key):
         return np.array([r[key] for r in rows], dtype=float)
 
-    cov = np.array([r["nav.covariance"] for r in rows_nav], dtype=float)
+    for i, r in enumerate(rows_nav):  # each estimate refers to the plant step it processed
+        if r["nav.t_s"] != (i + 1) * dt or rows_truth[i]["time.step"] != i + 1:
+            raise FmuCallError(f"estimate {i}: nav.t_s = {r['nav.t_s']!r} s, plant step {rows_truth[i]['time.step']}")
+    cov = np.array([r["nav.covariance"] for r in rows_nav], dtype=float).reshape(m, 9, 9)
     return EpisodeRecord(
         scenario=scenario, seed=seed, estimator=name or "fmu", earth=earth_model(scenario.earth),
-        t=(np.arange(n) + 1) * dt, truth_s=col(rows_truth, "truth.s_m"), truth_lat=col(rows_truth, "truth.lat_rad"),
+        t=(np.arange(m) + 1) * dt, truth_s=col(rows_truth, "truth.s_m"), truth_lat=col(rows_truth, "truth.lat_rad"),
         truth_lon=col(rows_truth, "truth.lon_rad"), truth_h=col(rows_truth, "truth.h_m"),
-        truth_velocity_n=col(rows_truth, "truth.velocity_n"),
+        truth_velocity_n=col(rows_truth, "truth.velocity_n").reshape(m, 3),
         truth_hpr=np.column_stack([col(rows_truth, f"truth.{a}_rad") for a in ("heading", "pitch", "roll")]),
         est_lat=col(rows_nav, "nav.lat_rad"), est_lon=col(rows_nav, "nav.lon_rad"), est_h=col(rows_nav, "nav.h_m"),
-        est_velocity_n=col(rows_nav, "nav.velocity_n"),
+        est_velocity_n=col(rows_nav, "nav.velocity_n").reshape(m, 3),
         est_hpr=np.column_stack([col(rows_nav, f"nav.{a}_rad") for a in ("heading", "pitch", "roll")]),
         est_cov=None if np.all(np.isnan(cov)) else cov, nis=col(rows_nav, "nav.nis"),
-        nis_dof=np.array([r["nav.nis_dof"] for r in rows_nav], dtype=int), step_time_s=cpu,
-        gnss_t=np.array(gnss_t), gnss_n_valid=np.array(n_valid, dtype=int),
-        gnss_receiver_outage=np.array(rx_out, dtype=bool), prior=prior,
+        nis_dof=np.array([r["nav.nis_dof"] for r in rows_nav], dtype=int), step_time_s=np.array(cpu),
+        gnss_t=np.array([e[1] for e in epochs]), gnss_n_valid=np.array([e[2] for e in epochs], dtype=int),
+        gnss_receiver_outage=np.array([e[3] for e in epochs], dtype=bool), prior=prior,
     )

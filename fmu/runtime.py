@@ -29,11 +29,32 @@ External motion
     (``motion.start_s_m``, ``motion.speed_mps`` and the initial acceleration). The sample is pushed into the core's
     :class:`~navsim.motion.ExternalMotion` (quintic Hermite between samples), exactly as
     :meth:`Simulator.push_motion` does when ``h`` is one navigation step.
-Estimator
-    The estimator FMU needs a communication step of exactly one navigation step. Its
-    inputs carry the plant's names; at the first ``do_step`` it resets the estimator with
-    the ``prior.*`` inputs (the plant's ``prior.*`` outputs) and the prior covariance of
-    the embedded scenario's ``[initial]`` section.
+Estimator: co-simulation semantics under any master
+    The estimator FMU's inputs carry the plant's output names (285 connections by name
+    for paper-2012, FMI 2), the plant's step counter ``time.step`` and ``time.t_s``
+    included. It accepts any communication step of a whole number of ticks and keeps its
+    own time. At ``doStep(t, h)`` let ``c`` be the ``time.step`` input, ``p`` the plant
+    steps already processed (output ``nav.step``), ``n0``/``n1`` the navigation steps
+    ended at ``t``/``t + h``. It processes plant step ``c`` (index ``c - 1``) when
+    ``c = p + 1``, and holds its outputs when ``c = p``, provided ``n0 <= c <= n1``:
+    a Gauss-Seidel master stepping the plant first gives ``c = n1`` (no lag); a Jacobi
+    master, or a Gauss-Seidel one stepping the estimator first, gives ``c = n0`` (the
+    estimate is one navigation step behind the FMU's time). The first communication step
+    that spans the end of a navigation step shows which of the two the master is; from
+    then on ``c`` must be ``n1`` (plant-first) or ``n0`` (lagged). Every other case is refused
+    with an error status and a log line, state unchanged: ``c < p`` (repeated data: a
+    plant reset or replayed values), ``c > p + 1`` (skipped data, e.g. a communication
+    step of several navigation steps: the plant composes those steps' increments and the
+    estimator cannot take them one by one; a communication step spanning more than one
+    navigation step is refused for the same reason), ``c`` behind the master's order (stale
+    data: a missed transfer, a master that changed its order, ``time.step`` not
+    connected), ``c`` ahead of it, and a ``time.t_s`` input that
+    is not ``c`` navigation steps. Outputs: ``nav.t_s`` is the time the solution refers
+    to (the end of plant step ``c``; the prior, at 0, before the first step),
+    ``nav.lag_steps = n1 - p`` the lag in navigation steps. The estimator is reset with
+    the ``prior.*`` inputs when the first plant step arrives (so the prior has been
+    transferred whatever the master's order) and the prior covariance of the embedded
+    scenario's ``[initial]`` section.
 """
 
 from __future__ import annotations
@@ -513,44 +534,104 @@ class EstimatorRuntime(_RuntimeBase):
         self.prior_covariance = self.sim.reset(0).prior.covariance  # depends on [initial] only
         self.timing = self.base_scenario.timing
         self.prn = np.asarray(self.sim.constellation.prn)
-        self.step_index = 0
+        self.nav_ticks = self.timing.nav_ticks
+        self.end_tick = self.timing.steps * self.nav_ticks
+        self.tick = 0  # the estimator FMU's time in simulator ticks
+        self.processed = 0  # plant steps processed (nav.step)
+        self.lagged = None  # None until the master's order is seen; then True (Jacobi) or False
         self.started = False
         self.initialised = True
         self.log(f"navsim {_version()} estimator {params['estimator.name']!r} on scenario "
                  f"{self.base_scenario.name!r} (config {self.base_scenario.config_hash()})")
 
-    def check_step(self, t: float, h: float) -> None:
+    # -- stepping -----------------------------------------------------------------------
+    def check_step(self, t: float, h: float) -> tuple[int, int | None]:
+        """``(ticks, k)`` of a communication step: its length in ticks and the index of the
+        plant step to process now (``None``: no new plant step); FmuError with the reason
+        when the step or the plant's counter breaks the rules of the module docstring."""
         if not self.initialised:
             raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
         if self.terminated:
             raise FmuError("doStep after terminate: reset or instantiate the FMU again")
-        dt = self.timing.nav_period_s
-        now = self.step_index * dt
+        tick_s, dt = self.timing.tick_s, self.timing.nav_period_s
+        now = self.tick * tick_s
         if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
-            raise FmuError(f"communication point t = {t!r} s does not match the estimator's time {now!r} s")
-        if not (math.isfinite(h) and abs(h - dt) <= REL_TOL * dt):
-            ticks = h / self.timing.tick_s if math.isfinite(h) else math.nan
-            what = ("a whole number of ticks but not one navigation step" if math.isfinite(ticks)
-                    and abs(ticks - round(ticks)) <= REL_TOL * max(1.0, ticks) and round(ticks) >= 1
-                    else "not a whole number of simulator ticks")
-            raise FmuError(f"communication step h = {h!r} s is {what}: the estimator FMU steps exactly one "
-                           f"navigation step, h = {dt!r} s")
-        if self.step_index >= self.timing.steps:
-            raise FmuError(f"the episode is over ({self.timing.duration_s!r} s)")
+            raise FmuError(f"communication point t = {t!r} s does not match the estimator's time {now!r} s "
+                           "(steps must follow each other without gaps)")
+        ratio = h / tick_s if math.isfinite(h) else math.nan
+        n = round(ratio) if math.isfinite(ratio) else 0
+        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
+            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
+                           f"(tick = {tick_s!r} s, navigation step {dt!r} s)")
+        if self.tick + n > self.end_tick:
+            raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
+                           f"({self.timing.duration_s!r} s)")
+        c = int(self.store.read("time.step"))
+        done = self.processed
+        n0, n1 = self.tick // self.nav_ticks, (self.tick + n) // self.nav_ticks
+        if n1 - n0 > 1:
+            raise FmuError(f"communication step h = {h!r} s spans {n1 - n0} navigation steps: the plant composes "
+                           "the increments of the steps it serves in one communication step and the estimator "
+                           f"takes each plant step one by one; step both FMUs with h <= {dt!r} s (one "
+                           "navigation step or a whole number of ticks within one)")
+        if c < done:
+            raise FmuError(f"repeated data: the plant's time.step input went back from {done} to {c} (a plant "
+                           "reset or restarted without the estimator, or old values replayed); the estimator "
+                           "takes each plant step once and in order")
+        if c > done + 1:
+            raise FmuError(f"skipped data: the plant's time.step input jumped from {done} to {c}, so "
+                           f"{c - done - 1} navigation step(s) of sensor data were never seen (a communication "
+                           f"step of several navigation steps, h = {h!r} s, or a lost transfer); step both "
+                           f"FMUs with at most one navigation step, h <= {dt!r} s")
+        lagged = self.lagged
+        if lagged is None and n1 > n0:  # the first step across a step end shows the master's order
+            lagged = c == n0 and c < n1
+        want = n1 if not lagged else n0
+        if c != want:
+            order = ("a plant-first (Gauss-Seidel) master" if lagged is False else
+                     "a Jacobi or estimator-first master" if lagged else "any master")
+            if c < want:
+                raise FmuError(f"stale data: the plant's time.step input is {c} at t = {t!r} s, where {order} "
+                               f"gives {want}: a transfer of the plant's outputs was missed, the master changed "
+                               "its order, or time.step is not connected (is time.step connected?)")
+            raise FmuError(f"the plant's time.step input {c} is ahead of the estimator (t = {t!r} s, h = {h!r} "
+                           f"s; {order} gives {want}): plant and estimator must start and step together")
+        t_in = float(self.store.read("time.t_s"))
+        if c and not abs(t_in - c * dt) <= REL_TOL * max(1.0, c * dt) + 1e-12:
+            raise FmuError(f"the plant's time.t_s input {t_in!r} s is not the end of its step {c} with this "
+                           f"estimator's navigation step {dt!r} s: plant and estimator of different scenarios?")
+        self._lagged_next = lagged
+        return n, (c - 1 if c == done + 1 else None)
 
     def do_step(self, t: float, h: float) -> None:
-        from navsim.estimators.base import GnssObservation, Measurement
+        """Advance one communication step (FmuError: refused, state unchanged)."""
+        n, k = self.check_step(t, h)
+        self.lagged = self._lagged_next
+        if k is not None:
+            if not self.started:  # the prior came with (or before) the plant's first step
+                self.estimator.reset(self.context, self._prior())
+                self.started = True
+            est = self.estimator.step(self._measurement(k))
+            self.processed = k + 1
+            self._write_estimate(est, self.processed * self.timing.nav_period_s)
+        elif not self.started:
+            self._write_estimate(self._prior(), 0.0)
+        self.tick += n
+        self.store.write("nav.lag_steps", self.tick // self.nav_ticks - self.processed)
+
+    def _prior(self):
         from navsim.simulator import Prior
 
-        self.check_step(t, h)
         read = self.store.read
-        if not self.started:
-            prior = Prior(t=0.0, lat=float(read("prior.lat_rad")), lon=float(read("prior.lon_rad")),
-                          h=float(read("prior.h_m")), velocity_n=read("prior.velocity_n"),
-                          heading=float(read("prior.heading_rad")), pitch=float(read("prior.pitch_rad")),
-                          roll=float(read("prior.roll_rad")), covariance=self.prior_covariance.copy())
-            self.estimator.reset(self.context, prior)
-            self.started = True
+        return Prior(t=0.0, lat=float(read("prior.lat_rad")), lon=float(read("prior.lon_rad")),
+                     h=float(read("prior.h_m")), velocity_n=read("prior.velocity_n"),
+                     heading=float(read("prior.heading_rad")), pitch=float(read("prior.pitch_rad")),
+                     roll=float(read("prior.roll_rad")), covariance=self.prior_covariance.copy())
+
+    def _measurement(self, k: int):
+        from navsim.estimators.base import GnssObservation, Measurement
+
+        read = self.store.read
         orders = self.dims.orders
         gnss = None
         if read("gnss.new_epoch"):
@@ -559,18 +640,17 @@ class EstimatorRuntime(_RuntimeBase):
                 sat_vel_e=read("gnss.sat_vel_e"), pseudorange_m=read("gnss.pseudorange_m"),
                 pseudorange_rate_mps=read("gnss.pseudorange_rate_mps"), valid=read("gnss.valid"))
         dt = self.timing.nav_period_s
-        k = self.step_index
-        meas = Measurement(
+        return Measurement(
             step=k, t=(k + 1) * dt, dt=dt,
             dtheta_r=np.stack([read(f"imu.dtheta_r{r}") for r in range(1, orders + 1)]),
             dv_r=np.stack([read(f"imu.dv_r{r}") for r in range(1, orders + 1)]),
             dtheta_sub=read("imu.dtheta_sub"), dv_sub=read("imu.dv_sub"), gnss=gnss,
             odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
-        est = self.estimator.step(meas)
-        self.step_index += 1
+
+    def _write_estimate(self, est, t_s: float) -> None:
         w = self.store.write
-        w("time.t_s", meas.t)
-        w("time.step", self.step_index)
+        w("nav.t_s", t_s)
+        w("nav.step", self.processed)
         w("nav.lat_rad", float(est.lat))
         w("nav.lon_rad", float(est.lon))
         w("nav.h_m", float(est.h))
@@ -584,8 +664,9 @@ class EstimatorRuntime(_RuntimeBase):
         w("nav.sigma_velocity_n", sigma[3:6])
         w("nav.sigma_attitude_n", sigma[6:9])
         w("nav.covariance", cov)
-        w("nav.nis", math.nan if est.nis is None else float(est.nis))
-        w("nav.nis_dof", int(est.nis_dof or 0) if est.nis is not None else 0)
+        nis = getattr(est, "nis", None)
+        w("nav.nis", math.nan if nis is None else float(nis))
+        w("nav.nis_dof", int(est.nis_dof or 0) if nis is not None else 0)
 
 
 # Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python

@@ -179,17 +179,38 @@ def _info_vars() -> list[Var]:
 
 
 def _time_vars(kind: str) -> list[Var]:
-    out = [
+    if kind == "estimator":  # the plant's counters, read to take each plant step once and in order
+        return [
+            Var("time.t_s", "real", "input", "discrete", "s",
+                "The plant's time.t_s: end time of the plant's latest navigation step", 0.0, (), "time"),
+            Var("time.step", "int", "input", "discrete", "",
+                "The plant's time.step: navigation steps the plant has served; the estimator processes the "
+                "plant's data once, when this counter is one more than nav.step", 0, (), "time", low=0),
+        ]
+    return [
         Var("time.t_s", "real", "output", "discrete", "s",
             "End time of the latest navigation step served (holds between steps)", group="time"),
         Var("time.step", "int", "output", "discrete", "",
-            "Navigation steps served since the start of the episode", group="time", low=0),
+            "Navigation steps served since the start of the episode (the estimator FMU reads it to take "
+            "each step once)", group="time", low=0),
+        Var("time.steps_in_interval", "int", "output", "discrete", "",
+            "Navigation steps completed in the last communication step (0 when the step ended inside a "
+            "navigation step; the other outputs then hold the latest step served)", group="time", low=0),
     ]
-    if kind == "plant":
-        out.append(Var("time.steps_in_interval", "int", "output", "discrete", "",
-                       "Navigation steps completed in the last communication step (0 when the step "
-                       "ended inside a navigation step)", group="time", low=0))
-    return out
+
+
+def _estimate_time_vars() -> list[Var]:
+    return [
+        Var("nav.t_s", "real", "output", "discrete", "s",
+            "Time the nav.* solution refers to: the end of the plant step it has processed (0: the prior). "
+            "Under a Jacobi master it is one navigation step behind the FMU's time", group="solution"),
+        Var("nav.step", "int", "output", "discrete", "",
+            "Plant navigation steps processed (the step the nav.* solution refers to)", group="solution", low=0),
+        Var("nav.lag_steps", "int", "output", "discrete", "",
+            "Navigation steps between the end of the last communication step and nav.t_s (0 under a "
+            "plant-first Gauss-Seidel master, 1 under a Jacobi or estimator-first master)", group="solution",
+            low=0),
+    ]
 
 
 def _imu_vars(dims: Dimensions, causality: str) -> list[Var]:
@@ -394,7 +415,7 @@ def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[
     ]
     return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input")
             + _odometer_vars(dims, "input") + _prior_vars("input")
-            + _time_vars("estimator") + _solution_vars() + _uncertainty_vars())
+            + _time_vars("estimator") + _estimate_time_vars() + _solution_vars() + _uncertainty_vars())
 
 
 def observation_variables(dims: Dimensions) -> list[Var]:

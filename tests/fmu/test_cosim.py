@@ -51,8 +51,10 @@ def test_estimator_fmu_refuses_other_steps(estimator3):
 
     with FmuInstance(estimator3, "e") as inst:
         inst.initialize()
-        with pytest.raises(FmuCallError, match="exactly one navigation step"):
+        with pytest.raises(FmuCallError, match="spans 2 navigation steps"):
             inst.do_step(0.0, 0.02)
+        with pytest.raises(FmuCallError, match="not a whole number"):
+            inst.do_step(0.0, 0.015)
 
 
 def test_odometer_through_the_fmus(fmu_dir, scenario):
