@@ -157,7 +157,7 @@ class AdaptiveFilterEnv(gym.Env):
         Scenario sections.
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
 
     def __init__(self, scenario="paper-2012", *, estimator: Any = "lc-ekf", estimator_options: dict | None = None,
                  decision_period_s: float = 1.0, max_scale: float = 10.0, reward_cap: float = 1e4,
@@ -165,8 +165,8 @@ class AdaptiveFilterEnv(gym.Env):
         from navsim.episode import make_context
         from navsim.simulator import Simulator
 
-        if render_mode is not None:
-            raise ConfigError("render_mode", "None (the adaptive-filtering env does not render)", render_mode)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError("render_mode", f"None or one of {self.metadata['render_modes']}", render_mode)
         if not (max_scale > 1.0 and math.isfinite(max_scale)):
             raise ConfigError("max_scale", "a finite factor > 1", max_scale)
         self.scenario = resolve_scenario(scenario, overrides)
@@ -183,7 +183,10 @@ class AdaptiveFilterEnv(gym.Env):
         self.adapter = NoiseAdapter(self.estimator)
         self.max_scale = float(max_scale)
         self.reward_cap = float(reward_cap)
-        self.render_mode = None
+        self.render_mode = render_mode
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * timing.nav_period_s)}
+        self._renderer = None
+        self._scales = (1.0, 1.0)
         self.n_steps = timing.steps
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         low = np.array([-3, -3, 0, 0, 0, 0, -1, -1, 0], dtype=np.float32)
@@ -244,6 +247,11 @@ class AdaptiveFilterEnv(gym.Env):
         chunk, out = self._run_interval()  # the first interval runs untuned
         info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "q_scale": 1.0, "r_scale": 1.0,
                 "config_hash": self.scenario.config_hash()}
+        self._scales = (1.0, 1.0)
+        if self._renderer is not None:
+            self._renderer.reset(self)
+        if self.render_mode == "human":
+            self.render()
         return self._features(out, chunk), info
 
     def step(self, action):
@@ -252,6 +260,7 @@ class AdaptiveFilterEnv(gym.Env):
         a = np.clip(np.asarray(action, dtype=float).reshape(2), -1.0, 1.0)
         q, r = self.max_scale ** a[0], self.max_scale ** a[1]
         self.adapter.set(q, r)
+        self._scales = (float(q), float(r))
         self._prev = (float(a[0]), float(a[1]))
         chunk, out = self._run_interval()
         err = _position_error(out.solution, chunk.truth, self.sim.earth)
@@ -267,7 +276,35 @@ class AdaptiveFilterEnv(gym.Env):
             record = self.tape.record(self.scenario, self.seed_value, f"{self.estimator_name}+agent", self.sim.earth,
                                       self.prior)
             info["episode_score"] = score_episode(record, track=self.sim.track)
+        if self.render_mode == "human":
+            self.render()
         return obs, reward, False, truncated, info
+
+    # ------------------------------------------------------------------ rendering
+    def render_view(self):
+        """What a frame shows (:mod:`navsim.envs.render`): the estimator's path and error, the factors."""
+        from .render import FrameView, tape_view
+
+        timing = self.scenario.timing
+        if self._k < 0:  # before the first reset
+            return FrameView(0.0, timing.duration_s, np.zeros(0), np.zeros(0))
+        q, r = self._scales
+        return tape_view(self.tape, self._k, self.tape.actions, 1.0, timing.nav_period_s, timing.duration_s,
+                         timing.gnss_period_s, status=f"{self.estimator_name}: Q x {q:.3g}, R x {r:.3g}")
+
+    def render(self):
+        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
+        from .render import render_env
+
+        frame, self._renderer = render_env(self, self._renderer)
+        return frame
+
+    def close(self):
+        """Release the window (if any); harmless to call more than once."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
 
 
 def _step_batch(estimator, batch):

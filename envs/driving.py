@@ -155,7 +155,7 @@ class DrivingEnv(gym.Env):
         Scenario sections.
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
     WEIGHTS = {"comfort": 0.05, "energy": 0.05, "stop_bonus": 10.0, "late": 1.0, "early": 0.2, "overrun": 20.0}
 
     def __init__(self, scenario="mountain-railway", *, estimator: Any = "along-track",
@@ -165,8 +165,8 @@ class DrivingEnv(gym.Env):
         from navsim.episode import make_context
         from navsim.simulator import Simulator
 
-        if render_mode is not None:
-            raise ConfigError("render_mode", "None (the driving env does not render)", render_mode)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError("render_mode", f"None or one of {self.metadata['render_modes']}", render_mode)
         base = resolve_scenario(scenario, overrides)
         self.marks, self.dwell, self.sched_arr, self.sched_dep = schedule_of(base, float(slack))
         timing = base.timing
@@ -197,7 +197,9 @@ class DrivingEnv(gym.Env):
         self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
         self.stop_tolerance_m = float(stop_tolerance_m)
         self.truth_in_info = bool(truth_in_info)
-        self.render_mode = None
+        self.render_mode = render_mode
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * self.dt)}
+        self._renderer = None
         self.n_steps = self.scenario.timing.steps
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         low = np.array([-1, -1, -5, -1, 0, 0, -1, 0, 0], dtype=np.float32)
@@ -228,6 +230,10 @@ class DrivingEnv(gym.Env):
         self.stops: list[dict] = []
         info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "marks_m": self.marks.copy(),
                 "scheduled_arrival_s": self.sched_arr.copy(), "scheduled_departure_s": self.sched_dep.copy()}
+        if self._renderer is not None:
+            self._renderer.reset(self)
+        if self.render_mode == "human":
+            self.render()
         return self._observation(), info
 
     def _observation(self) -> np.ndarray:
@@ -328,4 +334,44 @@ class DrivingEnv(gym.Env):
             info["stops"] = list(self.stops)
             self.steps_done = steps
             self._k = self.n_steps  # the episode is over
+        if self.render_mode == "human":
+            self.render()
         return self._observation(), float(reward), terminated, truncated, info
+
+    # ------------------------------------------------------------------ rendering
+    def render_view(self):
+        """What a frame shows (:mod:`navsim.envs.render`): the train's true and estimated
+        position and speed, the stations, the next stop."""
+        from .render import FrameView, tape_view
+
+        duration = self.scenario.timing.duration_s
+        lat_m = np.interp(self.marks, self.map.s, self.map.lat)
+        lon_m = np.interp(self.marks, self.map.s, self.map.lon)
+        if self._k <= 0:
+            lat0, lon0 = np.interp([self.marks[0]], self.map.s, self.map.lat), np.interp([self.marks[0]], self.map.s,
+                                                                                         self.map.lon)
+            return FrameView(0.0, duration, lat0, lon0, marks_lat=lat_m, marks_lon=lon_m)
+        if self.target < len(self.marks):
+            i = self.target
+            status = (f"next: station {i} at {self.marks[i]:.0f} m, due {self.sched_arr[i]:.0f} s; "
+                      f"served {i - 1}/{len(self.marks) - 1}; {self.energy_kwh:.2f} kWh")
+        else:
+            status = f"all {len(self.marks) - 1} stations served; {self.energy_kwh:.2f} kWh"
+        view = tape_view(self.tape, self._k, self.tape.actions, 1.0, self.dt, duration,
+                         self.scenario.timing.gnss_period_s, strip="speed", status=status)
+        view.marks_lat, view.marks_lon = lat_m, lon_m
+        return view
+
+    def render(self):
+        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
+        from .render import render_env
+
+        frame, self._renderer = render_env(self, self._renderer)
+        return frame
+
+    def close(self):
+        """Release the window (if any); harmless to call more than once."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()

@@ -152,7 +152,7 @@ class NavigationEnv(gym.Env):
         Scenario sections, merged into the scenario (nested dicts).
     """
 
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}  # per instance: 1 / nav_period_s
 
     def __init__(self, scenario: str | Scenario = "paper-2012", *, render_mode: str | None = None,
                  truth_in_info: bool = False, reward_weights=(1.0, 0.0, 0.0), reward_cap: float = 1e4,
@@ -175,6 +175,8 @@ class NavigationEnv(gym.Env):
         self.context = make_context(self.sim)
         self.prn = np.asarray(self.sim.constellation.prn)
         self.render_mode = render_mode
+        # frames at the real time rate: one frame per navigation step
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / self.scenario.timing.nav_period_s}
         self.truth_in_info = bool(truth_in_info)
         self.reward_weights = weights
         self.reward_cap = float(reward_cap)
@@ -345,20 +347,10 @@ class NavigationEnv(gym.Env):
 
     # ------------------------------------------------------------------ rendering
     def render(self):
-        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
-        if self.render_mode is None:
-            gym.logger.warn("NavigationEnv.render() without a render_mode: pass render_mode='rgb_array' to make().")
-            return None
-        from .render import TrackRenderer
+        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window (:mod:`navsim.envs.render`)."""
+        from .render import render_env
 
-        if self._renderer is None:
-            self._renderer = TrackRenderer()
-            if self._k >= 0:
-                self._renderer.reset(self)
-        frame = self._renderer.frame(self)
-        if self.render_mode == "human":
-            self._renderer.show(frame, self.metadata["render_fps"])
-            return None
+        frame, self._renderer = render_env(self, self._renderer)
         return frame
 
     def close(self):
