@@ -225,6 +225,7 @@ from numpy.polynomial import Polynomial
 from ..earth import SPHERICAL, EarthModel
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
+from . import paper_ekf_kernel as _kernel
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
 
 __all__ = [
@@ -263,6 +264,9 @@ class PaperEkfConfig:
         (13) switched off - between epochs the state follows (7)-(8) open loop with the
         Riccati equation ``R' = A R + R A^T + Q`` (no gain, no Z_ax in (16)); the epoch
         update (16) uses the pseudoranges and Dopplers alone. Everything else identical.
+    engine : "auto" (the compiled engine :mod:`navsim.estimators.paper_ekf_kernel` when
+        numba is installed, else the reference), "python" (the reference engine, plain
+        Python and NumPy) or "compiled" (ConfigError without numba).
     """
 
     mode: str = "faithful"
@@ -275,6 +279,7 @@ class PaperEkfConfig:
     stiffness_limit: float = 0.5
     lever_arm: str = "auto"
     observer: bool = True
+    engine: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in ("faithful", "extended"):
@@ -311,6 +316,11 @@ class PaperEkfConfig:
             raise ConfigError("lever_arm", "'auto' or 'none'", self.lever_arm)
         if self.observer not in (True, False):
             raise ConfigError("observer", "True or False", self.observer)
+        if self.engine not in ("auto", "python", "compiled"):
+            raise ConfigError("engine", "'auto', 'python' or 'compiled'", self.engine)
+        if self.engine == "compiled" and not _kernel.available():
+            raise ConfigError("engine", "'auto' or 'python' (the compiled engine needs numba: "
+                              "pip install 'navsim-track[fast]')", self.engine)
 
 
 # ============================================================================ track
@@ -584,6 +594,11 @@ class PaperEkf:
         is stacked into (16) as configured; False: the same track-model filter on GNSS
         alone (no (13): zero gain between epochs, ``R' = A R + R A^T + Q``), the ablation
         of the paper's central claim.
+    engine : {"auto", "python", "compiled"}
+        Propagation engine between GNSS epochs: "python" the reference (plain Python and
+        NumPy), "compiled" :mod:`navsim.estimators.paper_ekf_kernel` (numba, optional extra
+        ``fast``; the same equations, equal to rounding), "auto" the compiled one when
+        numba is installed.
 
     Notes
     -----
@@ -597,9 +612,9 @@ class PaperEkf:
                  cov_step_s: float | None = None, input_model: str | None = None,
                  accel_in_update: bool | None = None, bias_states: str = "auto",
                  node_step_m: float = 10.0, stiffness_limit: float = 0.5, lever_arm: str = "auto",
-                 observer: bool = True) -> None:
+                 observer: bool = True, engine: str = "auto") -> None:
         self.config = PaperEkfConfig(mode, as_printed, cov_step_s, input_model, accel_in_update,
-                                     bias_states, node_step_m, stiffness_limit, lever_arm, observer)
+                                     bias_states, node_step_m, stiffness_limit, lever_arm, observer, engine)
         self._ready = False
 
     # ------------------------------------------------------------------ set-up
@@ -684,6 +699,7 @@ class PaperEkf:
         self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, scalars)
         self._fused = self._make_fused()
         self._riccati_layout()
+        self._kargs = self._kernel_args() if cfg.engine != "python" and _kernel.available() else None
         # --- initial state
         y0, p0 = self._state_from_prior(prior)
         self._Y = y0
@@ -1357,6 +1373,109 @@ class PaperEkf:
         return self._minv @ sw, self._minv @ sf
 
     # ------------------------------------------------------------------ core loop
+    @property
+    def engine(self) -> str:
+        """The propagation engine in use after :meth:`reset`: "compiled" or "python"."""
+        return "compiled" if getattr(self, "_kargs", None) is not None else "python"
+
+    def _propagate(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
+        if self._kargs is None:
+            return self._run(t_end, inp, dtheta_r, dv_r, epochs, steps)
+        return self._run_compiled(t_end, inp, dtheta_r, dv_r, epochs, steps)
+
+    def _kernel_args(self) -> tuple:
+        """Constants of :func:`navsim.estimators.paper_ekf_kernel.advance_py` (set-up)."""
+        k = _kernel
+        imu = self.context.imu
+        c = np.zeros(10)
+        c[k.C_OM], c[k.C_A], c[k.C_E2], c[k.C_CENT] = self._omega, self._a, self._e2, self._cent
+        c[k.C_QD], c[k.C_QA], c[k.C_DT], c[k.C_LIMIT] = self._qd, self._qa, self._dt, self.config.stiffness_limit
+        if self._biases:
+            c[k.C_TAU_A], c[k.C_TAU_G] = imu.accel_bias_tau_s, imu.gyro_bias_tau_s
+        tf = self.track_functions
+        ic = np.zeros(13, dtype=np.int64)
+        ic[k.I_OBSERVER] = self._observer
+        ic[k.I_SPHERE], ic[k.I_PRINTED], ic[k.I_BIASES], ic[k.I_CLOCK] = (
+            self._sphere, self._printed_kin, self._biases, self._clock)
+        ic[k.I_IA] = -1 if self._i_ba is None else self._i_ba
+        ic[k.I_IG] = -1 if self._i_bg is None else self._i_bg
+        ic[k.I_ICLK] = -1 if self._i_clk is None else self._i_clk
+        ic[k.I_SPE], ic[k.I_NC], ic[k.I_SINGLE], ic[k.I_ORDER], ic[k.I_HALL] = (
+            self._spe, self._n_c, tf.single, tf.order, self._h_all)
+        bar_idx = np.array([i for i, _ in self._bar_fix], dtype=np.int64)
+        bar_col = np.array([j for _, j in self._bar_fix], dtype=np.int64)
+        return (c, ic, np.ascontiguousarray(tf._breaks_arr, dtype=float), np.ascontiguousarray(tf._lam_arr, dtype=float),
+                np.ascontiguousarray(tf._h_arr, dtype=float), self._H, self._h_flat_idx.astype(np.int64),
+                np.array(self._h_sup, dtype=np.int64), bar_idx, bar_col)
+
+    def _run_compiled(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
+        """:meth:`_run` with the runs of steps between epochs advanced by the compiled engine.
+
+        The steps it hands back (start-up sub-steps, failures, epoch updates) are done here
+        by the reference code; the filter state is passed both ways at each hand-over."""
+        n = len(t_end)
+        ns = self.n_states
+        out_y = np.full((n, ns), np.nan)
+        out_p = np.full((n, ns, ns), np.nan)
+        nis = np.full(n, np.nan)
+        dof = np.zeros(n, dtype=int)
+        is_epoch = np.zeros(n, dtype=bool)
+        is_epoch[list(epochs)] = True
+        t_end = np.ascontiguousarray(t_end, dtype=float)
+        inp = np.ascontiguousarray(inp, dtype=float)
+        steps = np.ascontiguousarray(steps, dtype=np.int64)
+        Y = np.array(self._Y, dtype=float)
+        P = np.array(self._P, dtype=float)
+        P_start = np.array(self._P_start, dtype=float)
+        K = np.zeros(ns) if self._K is None else np.array(self._K, dtype=float)
+        cov = np.array([self._cov_left, self._cov_len, self._cov_pos], dtype=np.int64)
+        advance = _kernel.advance
+        i = 0
+        while i < n and not self._diverged:
+            i, status = advance(i, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, *self._kargs, out_y, out_p)
+            self._Y = Y.tolist()
+            self._P = P.copy()
+            self._P_rows = self._P.tolist()
+            self._P_start = P_start.copy()
+            self._K = K.tolist()
+            self._cov_left, self._cov_len, self._cov_pos = (int(x) for x in cov)
+            if status == _kernel.STATUS_DONE:
+                break
+            self._reference_step(i, inp[i].tolist(), float(t_end[i]), int(steps[i]), dtheta_r, dv_r,
+                                 epochs.get(i), status != _kernel.STATUS_EPOCH, out_y, out_p, nis, dof)
+            Y[:] = self._Y
+            P[:] = self._P
+            P_start[:] = self._P_start
+            if self._K is not None:
+                K[:] = self._K
+            cov[:] = (self._cov_left, self._cov_len, self._cov_pos)
+            i += 1
+        return out_y, out_p, nis, dof
+
+    def _reference_step(self, i, row, t, step, dtheta_r, dv_r, obs, propagate: bool, out_y, out_p, nis, dof):
+        """One step of :meth:`_run`'s loop (propagation unless done, epoch update, outputs)."""
+        try:
+            if propagate:
+                self._one_step(row, t, step, dtheta_r, dv_r, i)
+            if obs is not None:
+                self._cov_left = 0
+                res = self._epoch_update(obs, row[18:21], t, dtheta_r[i][0] / self._dt if self._lever else None)
+                if res is not None:
+                    nis[i], dof[i] = res
+            y = self._Y
+            if not math.isfinite(sum(y)):
+                raise FloatingPointError("non-finite state")
+            out_y[i] = y
+            if self._cov_left > 0 and self._cov_len > 1:
+                p0 = self._P_start
+                out_p[i] = p0 + (self._cov_pos / self._cov_len) * (self._P - p0)
+            else:
+                out_p[i] = self._P
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+            self._diverged = True
+            out_y[i] = np.nan
+            out_p[i] = np.nan
+
     def _run(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r, dv_r, epochs: dict, steps: np.ndarray):
         n = len(t_end)
         ns = self.n_states
@@ -1724,8 +1843,8 @@ class PaperEkf:
         inp = self._prepare(measurement.dtheta_r[None], measurement.dv_r[None])
         epochs = {} if measurement.gnss is None else {0: measurement.gnss}
         t = np.array([measurement.t])
-        y, p, nis, dof = self._run(t, inp, measurement.dtheta_r[None], measurement.dv_r[None], epochs,
-                                   np.array([measurement.step]))
+        y, p, nis, dof = self._propagate(t, inp, measurement.dtheta_r[None], measurement.dv_r[None], epochs,
+                                         np.array([measurement.step]))
         sol, cov = self.outputs(y, p, t)
         extra = {"state": y[0].copy(), "state_cov": p[0].copy(), "diverged": self._diverged}
         extra.update(self._extra_states(y[0]))
@@ -1741,7 +1860,7 @@ class PaperEkf:
         inp = self._prepare(batch.dtheta_r, batch.dv_r)
         epochs = {int(j): obs for j, obs in batch.gnss}
         t = np.asarray(batch.t, dtype=float)
-        y, p, nis, dof = self._run(t, inp, batch.dtheta_r, batch.dv_r, epochs, np.asarray(batch.step))
+        y, p, nis, dof = self._propagate(t, inp, batch.dtheta_r, batch.dv_r, epochs, np.asarray(batch.step))
         sol, cov = self.outputs(y, p, t)
         self.last_states, self.last_state_cov = y, p
         return EstimateBatch(solution=sol, covariance=cov, nis=nis, nis_dof=dof)
