@@ -2,8 +2,9 @@
 
 :class:`EstimatorAgent` turns an estimator (anything with ``reset(context, prior)`` and
 ``step(measurement) -> Estimate``, see :mod:`navsim.estimators.base`) into an agent of
-the navigation env: it rebuilds the :class:`~navsim.estimators.base.Measurement` of each
-observation (the same arrays :func:`navsim.episode.measurements` hands out) and returns
+the navigation env: it decodes the :class:`~navsim.types.Measurement` of each
+observation with the signal codec (:class:`navsim.signals.ObservationCodec`; the same
+arrays :func:`navsim.episode.measurements` hands out) and returns
 the estimate as an :class:`EstimateAction`, an action array that also carries the
 covariance, the NIS of an update and the estimator's CPU time, so the env's episode score
 holds every figure of ``navsim run``.
@@ -19,6 +20,8 @@ from typing import Any, Iterable
 import numpy as np
 
 from navsim.errors import ConfigError
+from navsim.signals import Layout, ObservationCodec
+from navsim.types import Measurement
 
 __all__ = ["EstimateAction", "EstimatorAgent", "evaluate"]
 
@@ -93,28 +96,15 @@ class EstimatorAgent:
         context = info["context"]
         self.estimator.reset(context, info["prior"])
         self._prn = np.asarray(info["gnss_prn"])
-        self._dt = float(context.nav_period_s)
+        self.codec = ObservationCodec(Layout.of_context(context, len(self._prn)), self._prn)
+        self._decode = self.codec.decode
         self._scale = np.asarray(info.get("action_scale", np.ones(9)), dtype=float)
         self._step = 0
 
-    def measurement(self, obs: dict):
-        """The :class:`~navsim.estimators.base.Measurement` of one observation (with the
-        wheel-odometer distance when the observation has ``odometer_ds``)."""
-        from navsim.estimators.base import GnssObservation, Measurement
-
-        t = float(obs["t"][0])
-        gnss = None
-        if obs["gnss_new_epoch"][0]:
-            gnss = GnssObservation(
-                t=t, prn=self._prn, sat_pos_e=obs["sat_pos_e"].reshape(-1, 3), sat_vel_e=obs["sat_vel_e"].reshape(-1, 3),
-                pseudorange_m=obs["pseudorange_m"], pseudorange_rate_mps=obs["pseudorange_rate_mps"],
-                valid=np.asarray(obs["gnss_valid"], dtype=bool),
-            )
-        odometer = obs.get("odometer_ds")
-        m = Measurement(step=self._step, t=t, dt=self._dt, dtheta_r=obs["dtheta_r"].reshape(-1, 3),
-                        dv_r=obs["dv_r"].reshape(-1, 3), dtheta_sub=obs["dtheta_sub"].reshape(-1, 3),
-                        dv_sub=obs["dv_sub"].reshape(-1, 3), gnss=gnss,
-                        odometer_ds_m=None if odometer is None else float(odometer[0]))
+    def measurement(self, obs: dict) -> Measurement:
+        """The :class:`~navsim.types.Measurement` of one observation (with the wheel-odometer
+        distance when the scenario has an odometer), decoded by :mod:`navsim.signals`."""
+        m = self._decode(obs, self._step)
         self._step += 1
         return m
 

@@ -22,12 +22,6 @@ factors ``k_north = R_N + h`` and ``k_east = (R_E + h) cos(lat)`` of the reward,
 the arc length s."""
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.flags.writeable = False
-    return a
-
-
 @dataclass(slots=True)
 class PreparedChunk:
     """A chunk ready to be served step by step.
@@ -36,38 +30,23 @@ class PreparedChunk:
     ----------
     n : int
         Steps in the chunk. step0 : int, index of its first step in the episode.
-    t, dtheta_r, dv_r, dtheta_sub, dv_sub : read-only arrays (n, ...)
-        The IMU part of the observation (see :mod:`navsim.envs.spaces`).
+    obs : dict of read-only (n, size) arrays
+        The observation rows of :meth:`navsim.signals.ObservationCodec.encode_chunk`:
+        row i of every key is the observation of step ``step0 + i``.
     epoch_at : list[int]
         For each step, the chunk-local index of the GNSS epoch at its end, or -1.
-    new_epoch : read-only (n, 1) int8, 1 at epoch steps.
-    valid, pseudorange_m, pseudorange_rate_mps, sat_pos_e, sat_vel_e : read-only
-        The GNSS part, one row per step (zeros between epochs) or one per epoch (see
-        :func:`prepare_chunk`); ``valid`` as int8.
     truth : ndarray (n, 12)
         Truth rows in :data:`TRUTH_COLUMNS` order; ``truth_rows`` the same as lists.
     receiver_outage, n_valid : list
         Per step, the receiver-outage flag and the count of valid channels of the latest
         epoch at or before the step (held between epochs; carried across chunks).
     chunk : the simulator's Chunk.
-    odometer_ds : read-only (n, 1) or None
-        The wheel-odometer distance of each step, m (None without an odometer).
     """
 
     n: int
     step0: int
-    t: np.ndarray
-    dtheta_r: np.ndarray
-    dv_r: np.ndarray
-    dtheta_sub: np.ndarray
-    dv_sub: np.ndarray
+    obs: dict
     epoch_at: list
-    new_epoch: np.ndarray
-    valid: np.ndarray | None
-    pseudorange_m: np.ndarray | None
-    pseudorange_rate_mps: np.ndarray | None
-    sat_pos_e: np.ndarray | None
-    sat_vel_e: np.ndarray | None
     truth: np.ndarray
     truth_rows: list
     receiver_outage: list
@@ -75,7 +54,6 @@ class PreparedChunk:
     last_outage: bool
     last_n_valid: int
     chunk: object
-    odometer_ds: np.ndarray | None = None
 
 
 def chunk_truth_table(chunk, earth) -> tuple[np.ndarray, np.ndarray]:
@@ -117,17 +95,15 @@ def held_flags(epoch_at: np.ndarray, outage_epoch, n_valid_epoch, held_outage, h
     return outage.astype(bool), n_valid.astype(np.int64)
 
 
-def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: int, rows: bool = True,
-                  per_step_gnss: bool = True) -> PreparedChunk:
+def prepare_chunk(chunk, earth, codec, held_outage: bool, held_n_valid: int, rows: bool = True) -> PreparedChunk:
     """Prepare a :class:`~navsim.simulator.Chunk` (see :class:`PreparedChunk`).
 
-    ``held_outage``, ``held_n_valid``: the flags of the last epoch of the previous
-    chunk (False, 0 at the episode start). ``rows``: also build the Python lists used by
-    the single env (the vector env reads the arrays). ``per_step_gnss``: GNSS arrays
-    with one row per step (zeros between epochs) instead of one row per epoch.
+    ``codec``: the env's :class:`navsim.signals.ObservationCodec`. ``held_outage``,
+    ``held_n_valid``: the flags of the last epoch of the previous chunk (False, 0 at the
+    episode start). ``rows``: also build the truth as Python lists (the single env's
+    reward reads them).
     """
     n = len(chunk)
-    imu = chunk.imu
     truth, epoch_at = chunk_truth_table(chunk, earth)
     g = chunk.gnss
     if g is not None and len(chunk.gnss_step):
@@ -137,32 +113,10 @@ def prepare_chunk(chunk, earth, n_sats: int, held_outage: bool, held_n_valid: in
         outage = np.full(n, held_outage)
         n_valid = np.full(n, held_n_valid)
         last_outage, last_n_valid = held_outage, held_n_valid
-    new_epoch = (epoch_at >= 0).astype(np.int8)[:, None]
-    if per_step_gnss:
-        # one row per step, zero between epochs: no two observations share memory
-        valid = np.zeros((n, n_sats), dtype=np.int8)
-        gnss = (np.zeros((n, n_sats)), np.zeros((n, n_sats)), np.zeros((n, n_sats, 3)), np.zeros((n, n_sats, 3)))
-        if g is not None and len(chunk.gnss_step):
-            rows_e = chunk.gnss_step
-            valid[rows_e] = g.valid
-            for dst, src in zip(gnss, (g.pseudorange_m, g.pseudorange_rate_mps, g.sat_pos_e, g.sat_vel_e)):
-                dst[rows_e] = src
-    elif g is not None:
-        valid = g.valid.astype(np.int8)
-        gnss = (g.pseudorange_m, g.pseudorange_rate_mps, g.sat_pos_e, g.sat_vel_e)
-    else:
-        valid, gnss = None, (None, None, None, None)
-    valid = None if valid is None else _frozen(valid)
-    gnss = tuple(None if x is None else _frozen(x.reshape(x.shape[0], int(np.prod(x.shape[1:])))) for x in gnss)  # 1-D per row
     return PreparedChunk(
-        n=n, step0=chunk.step0, t=_frozen(chunk.t[:, None]), dtheta_r=_frozen(imu.dtheta_r.reshape(n, -1)),
-        dv_r=_frozen(imu.dv_r.reshape(n, -1)), dtheta_sub=_frozen(imu.dtheta_sample[:, :, 0, :].reshape(n, -1)),
-        dv_sub=_frozen(imu.dv_sample[:, :, 0, :].reshape(n, -1)),
-        epoch_at=epoch_at.tolist(), new_epoch=_frozen(new_epoch), valid=valid, pseudorange_m=gnss[0], pseudorange_rate_mps=gnss[1],
-        sat_pos_e=gnss[2], sat_vel_e=gnss[3], truth=truth, truth_rows=truth.tolist() if rows else [],
-        receiver_outage=outage.astype(bool).tolist(), n_valid=n_valid.astype(int).tolist(),
-        last_outage=last_outage, last_n_valid=last_n_valid, chunk=chunk,
-        odometer_ds=None if getattr(chunk, "odometer", None) is None else _frozen(chunk.odometer.ds_m[:, None]),
+        n=n, step0=chunk.step0, obs=codec.encode_chunk(chunk), epoch_at=epoch_at.tolist(), truth=truth,
+        truth_rows=truth.tolist() if rows else [], receiver_outage=outage.astype(bool).tolist(),
+        n_valid=n_valid.astype(int).tolist(), last_outage=last_outage, last_n_valid=last_n_valid, chunk=chunk,
     )
 
 

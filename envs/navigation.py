@@ -83,6 +83,7 @@ import numpy as np
 
 from navsim.errors import ConfigError
 from navsim.scenario import Scenario, load_scenario
+from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, PreparedChunk, prepare_chunk
 from .spaces import ACTION_SCALE, action_space, observation_space
@@ -191,14 +192,7 @@ class NavigationEnv(gym.Env):
         self.action_space = action_space(self.physical_action)
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()
         self._s_lat, self._s_lon, self._s_h = (float(x) for x in self.action_scale[:3])
-        R, m = self.scenario.imu.orders, timing.samples_per_step
-        self._terminal_obs = {"t": np.array([timing.duration_s]), "dtheta_r": np.zeros(3 * R), "dv_r": np.zeros(3 * R),
-                              "dtheta_sub": np.zeros(3 * m), "dv_sub": np.zeros(3 * m),
-                              "gnss_new_epoch": np.zeros(1, dtype=np.int8), "gnss_valid": np.zeros(k, dtype=np.int8),
-                              "pseudorange_m": np.zeros(k), "pseudorange_rate_mps": np.zeros(k),
-                              "sat_pos_e": np.zeros(3 * k), "sat_vel_e": np.zeros(3 * k)}
-        if self._odometer:
-            self._terminal_obs["odometer_ds"] = np.zeros(1)
+        self.codec = ObservationCodec(Layout.of(self.scenario, k), self.prn)
         self._config = {"scenario": self.scenario.name, "config_hash": self.scenario.config_hash(),
                         "scenario_toml": self.scenario.to_toml()}
         self._pc: PreparedChunk | None = None
@@ -234,21 +228,15 @@ class NavigationEnv(gym.Env):
 
     def _load_chunk(self, held_outage: bool, held_n_valid: int) -> None:
         chunk = self.sim.advance(self.chunk_steps)
-        self._pc = prepare_chunk(chunk, self.sim.earth, len(self.prn), held_outage, held_n_valid)
+        self._pc = prepare_chunk(chunk, self.sim.earth, self.codec, held_outage, held_n_valid)
+        self._obs_rows = tuple(self._pc.obs.items())
         self._i = 0
         self._truth_rows = self._pc.truth_rows
         if self.tape is not None:
             self.tape.add_chunk(self._pc)
 
     def _obs(self, i: int) -> dict:
-        pc = self._pc
-        obs = {"t": pc.t[i], "dtheta_r": pc.dtheta_r[i], "dv_r": pc.dv_r[i], "dtheta_sub": pc.dtheta_sub[i],
-               "dv_sub": pc.dv_sub[i], "gnss_new_epoch": pc.new_epoch[i], "gnss_valid": pc.valid[i],
-               "pseudorange_m": pc.pseudorange_m[i], "pseudorange_rate_mps": pc.pseudorange_rate_mps[i],
-               "sat_pos_e": pc.sat_pos_e[i], "sat_vel_e": pc.sat_vel_e[i]}
-        if pc.odometer_ds is not None:
-            obs["odometer_ds"] = pc.odometer_ds[i]
-        return obs
+        return {key: rows[i] for key, rows in self._obs_rows}
 
     def _step_info(self, i: int) -> dict:
         pc = self._pc
@@ -290,7 +278,7 @@ class NavigationEnv(gym.Env):
         k += 1
         self._k = k
         if k == self.n_steps:
-            obs = {key: value.copy() for key, value in self._terminal_obs.items()}
+            obs = self.codec.terminal()
             if tape is not None:
                 self.last_score = self._score()
                 info["episode_score"] = self.last_score

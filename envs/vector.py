@@ -44,6 +44,7 @@ from gymnasium.vector.utils import batch_space
 
 from navsim.errors import ConfigError
 from navsim.scenario import Scenario
+from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, chunk_truth_table, held_flags
 from .navigation import resolve_scenario, wrap_array
@@ -123,10 +124,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.render_mode = None
         self._config = {"scenario": self.scenario.name, "config_hash": self.scenario.config_hash(),
                         "scenario_toml": self.scenario.to_toml()}
-        n, k = self.num_envs, self.n_sats
-        self._no_gnss = {"gnss_valid": _frozen(np.zeros((n, k), dtype=np.int8)),
-                         "pseudorange_m": _frozen(np.zeros((n, k))), "pseudorange_rate_mps": _frozen(np.zeros((n, k))),
-                         "sat_pos_e": _frozen(np.zeros((n, 3 * k))), "sat_vel_e": _frozen(np.zeros((n, 3 * k)))}
+        n = self.num_envs
+        self.codec = ObservationCodec(Layout.of(self.scenario, self.n_sats), self.prn)
         self._ones = _frozen(np.ones(n, dtype=bool))
         self._falses = _frozen(np.zeros(n, dtype=bool))
         self._k = -1
@@ -189,50 +188,19 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         if self.tapes is not None:
             for j, tape in enumerate(self.tapes):
                 tape.add_chunk(chunk.member(j))
-        imu = chunk.imu
         truth, epoch_at = chunk_truth_table(chunk, self.batch.members[0].earth)
         self._truth = truth  # (c, 12) shared by the members
-        self._epoch_at = epoch_at.tolist()
-        # per step: (N, ...) views; the time and epoch flag are shared (stride-0 views)
-        self._t = np.broadcast_to(chunk.t[:, None, None], (c, n_env, 1))
-        self._new_epoch = np.broadcast_to((epoch_at >= 0).astype(np.int8)[:, None, None], (c, n_env, 1))
-        self._dtheta_r = _frozen(imu.dtheta_r.reshape(n_env, c, -1))
-        self._dv_r = _frozen(imu.dv_r.reshape(n_env, c, -1))
-        self._dtheta_sub = _frozen(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))
-        self._dv_sub = _frozen(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))
-        if self._has_odometer:
-            self._odometer_ds = _frozen(chunk.odometer.ds_m.reshape(n_env, c, 1))
+        self._obs = self.codec.encode_batch_chunk(chunk)  # step i -> dict of (N, ...) views
         g = chunk.gnss
         n_valid_epoch = g.valid.sum(axis=2) if g is not None else np.zeros((n_env, 0), dtype=np.int64)
         outage, n_valid = held_flags(epoch_at, chunk.receiver_outage, n_valid_epoch, *self._held)
         self._held = (outage[:, -1].copy(), n_valid[:, -1].copy())
         self._outage = _frozen(outage.T)  # (c, N)
         self._n_valid = _frozen(n_valid.T)
-        if g is not None and len(chunk.gnss_step):
-            k = len(chunk.gnss_step)
-            self._valid = _frozen(g.valid.astype(np.int8))  # (N, k, m)
-            self._pr, self._prr = _frozen(g.pseudorange_m), _frozen(g.pseudorange_rate_mps)
-            self._sat_pos = np.broadcast_to(g.sat_pos_e[0].reshape(k, 1, -1), (k, n_env, 3 * self.n_sats))
-            self._sat_vel = np.broadcast_to(g.sat_vel_e[0].reshape(k, 1, -1), (k, n_env, 3 * self.n_sats))
         self._c = c
         self._i = 0
         if self.tapes is not None:
             self._actions = np.empty((c, n_env, 9))
-
-    def _obs(self, i: int) -> dict:
-        j = self._epoch_at[i]
-        if j < 0:
-            gnss = self._no_gnss
-        else:
-            gnss = {"gnss_valid": self._valid[:, j], "pseudorange_m": self._pr[:, j],
-                    "pseudorange_rate_mps": self._prr[:, j], "sat_pos_e": self._sat_pos[j],
-                    "sat_vel_e": self._sat_vel[j]}
-        obs = {"t": self._t[i], "dtheta_r": self._dtheta_r[:, i], "dv_r": self._dv_r[:, i],
-               "dtheta_sub": self._dtheta_sub[:, i], "dv_sub": self._dv_sub[:, i], "gnss_new_epoch": self._new_epoch[i],
-               **gnss}
-        if self._has_odometer:
-            obs["odometer_ds"] = self._odometer_ds[:, i]
-        return obs
 
     def _step_info(self, i: int) -> dict:
         info = {"receiver_outage": self._outage[i], "_receiver_outage": self._ones,
