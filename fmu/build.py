@@ -39,7 +39,8 @@ from navsim.errors import ConfigError, DependencyNotInstalled
 from .runtime import META_FILE, SCENARIO_FILE, plant_defaults
 from .variables import UNITS, Dimensions, Var, estimator_variables, plant_variables, scalar_names
 
-__all__ = ["build_fmu", "model_description_xml", "HOST_REQUIREMENTS", "MODEL_IDENTIFIERS"]
+__all__ = ["build_fmu", "model_description_xml", "variable_tables", "default_estimator", "HOST_REQUIREMENTS",
+           "MODEL_IDENTIFIERS"]
 
 MODEL_IDENTIFIERS = {"plant": "NavsimPlant", "estimator": "NavsimEstimator"}
 
@@ -248,6 +249,28 @@ def _embed_scenario(scenario, resources: dict[str, bytes]):
     return tomli_w.dumps(data)
 
 
+def default_estimator(estimator: str | None) -> str:
+    """The estimator of an estimator FMU: ``estimator``, or paper-ekf when installed, else lc-ekf
+    (ConfigError for a name that is not installed)."""
+    from navsim import estimators
+
+    if estimator is None:
+        estimator = "paper-ekf" if "paper-ekf" in estimators.available() else "lc-ekf"
+    if estimator not in estimators.available():
+        raise ConfigError("--estimator", f"an installed estimator {estimators.available()}", estimator)
+    return estimator
+
+
+def variable_tables(scenario, estimator: str | None = None, estimator_options: str = "") -> tuple[list[Var], list[Var]]:
+    """The plant and the estimator FMU's variable tables for ``scenario`` (FMI-version independent)."""
+    from navsim.simulator import Simulator
+
+    dims = Dimensions.of(Simulator(scenario))
+    return (plant_variables(dims, plant_defaults(scenario)),
+            estimator_variables(dims, {"estimator.name": default_estimator(estimator),
+                                       "estimator.options": estimator_options}))
+
+
 def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | None = None, *,
               estimator: str | None = None, estimator_options: str = "") -> Path:
     """Build a plant or estimator FMU of ``scenario``.
@@ -268,7 +291,6 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     Path of the written FMU.
     """
     import navsim
-    from navsim import estimators
     from navsim.scenario import Scenario, load_scenario
     from navsim.simulator import Simulator
 
@@ -288,10 +310,7 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
         text = (f"navsim plant: truth and sensor data (IMU increments and multiple integrals, GNSS pseudorange, "
                 f"Doppler, satellite states) of scenario {scenario.name!r}")
     else:
-        if estimator is None:
-            estimator = "paper-ekf" if "paper-ekf" in estimators.available() else "lc-ekf"
-        if estimator not in estimators.available():
-            raise ConfigError("--estimator", f"an installed estimator {estimators.available()}", estimator)
+        estimator = default_estimator(estimator)
         meta.update(estimator=estimator, estimator_options=estimator_options)
         table = estimator_variables(dims, {"estimator.name": estimator, "estimator.options": estimator_options})
         text = (f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its "

@@ -3,6 +3,9 @@
 ``navsim fmu build SCENARIO --what plant|estimator --fmi 2|3 -o FILE.fmu``
     build an FMU (``--estimator NAME`` for the estimator FMU; ``--set KEY=VALUE``
     overrides the scenario before embedding it).
+``navsim fmu ssp SCENARIO -o PAIR.ssp --estimator NAME --seed N``
+    write an SSP archive: the plant and estimator FMUs (FMI 2) and SystemStructure.ssd
+    with every connection and the parameters (:mod:`navsim.fmu.ssp`).
 ``navsim fmu validate FILE.fmu ...``
     fmpy's validation; exit status 1 when a problem is found.
 ``navsim fmu cosim PLANT.fmu ESTIMATOR.fmu --seed N [--master plant-first|estimator-first|jacobi]``
@@ -56,6 +59,15 @@ def _cmd_build(args) -> int:
         for p in problems:
             print(f"validation: {p}", file=sys.stderr)
         return 1 if problems else 0
+    return 0
+
+
+def _cmd_ssp(args) -> int:
+    from .ssp import build_ssp
+
+    path = build_ssp(_scenario(args), args.output, estimator=args.estimator,
+                     estimator_options=args.estimator_options or "", seed=args.seed)
+    print(path)
     return 0
 
 
@@ -126,6 +138,15 @@ def add_fmu_parser(subparsers) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
     p.add_argument("--no-validate", action="store_true", help="skip fmpy validation of the result")
     p.set_defaults(func=_cmd_build)
+
+    p = sub.add_parser("ssp", help="write an SSP archive: plant + estimator FMUs and SystemStructure.ssd")
+    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
+    p.add_argument("-o", "--output", required=True, help="the .ssp file to write")
+    p.add_argument("--estimator", default=None, help="estimator of the estimator FMU (default paper-ekf or lc-ekf)")
+    p.add_argument("--estimator-options", default="", help="TOML key = value options for the estimator")
+    p.add_argument("--seed", type=int, default=0, help="the plant's seed parameter in the SSD")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
+    p.set_defaults(func=_cmd_ssp)
 
     p = sub.add_parser("validate", help="validate FMUs with fmpy")
     p.add_argument("fmu", nargs="+")

@@ -42,7 +42,7 @@ def main(mode: str, a: str, b: str, order: str, steps: int, seed: int) -> None:
     else:
         n = -1
         sim = EcosSimulation(ssp_path=a, step_size=0.01)
-        parameter_set = None  # the SSD's default parameter set applies
+        parameter_set = "navsim"  # the SSD's parameter set (navsim.fmu.ssp.PARAMETER_SET)
     rows, counters = [], []
     sim.init(parameter_set=parameter_set)
     for _ in range(steps):
