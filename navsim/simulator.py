@@ -57,6 +57,7 @@ from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import odometer as odometer_mod
 from .sensors import outages as outage_mod
+from .threads import limited
 
 __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile"]
 
@@ -484,6 +485,7 @@ def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, ex
     return out
 
 
+@limited  # small products: single-threaded BLAS (navsim.threads)
 def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
     """Generate the next steps of simulators in lockstep on one scenario and truth.
 

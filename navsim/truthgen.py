@@ -110,6 +110,7 @@ from .earth import mat_en
 from .motion import ExternalMotion, TrueState, body_kinematics, true_state
 from .rotations import mat_nb_from_hpr
 from .sensors.imu import multiple_integral_rule
+from .threads import limited
 
 __all__ = ["IdealSamples", "TruthGenerator"]
 
@@ -277,6 +278,7 @@ class TruthGenerator:
         return np.searchsorted(bp, lo, side="right"), np.searchsorted(bp, hi, side="left")
 
     # ------------------------------------------------------------------ public
+    @limited  # small products: single-threaded BLAS (navsim.threads)
     def samples(self, i0: int, n: int) -> IdealSamples:
         """Ideal output and truth for samples ``i0 .. i0 + n - 1``."""
         if not self.use_blocks:
