@@ -13,6 +13,8 @@
 ``navsim fmu run SCENARIO --motion-fmu TRAIN.fmu --motion-map s=s,speed=v,accel=a
 --motion-input F_traction=2e5 --estimator NAME --seed N``
     run an episode whose motion comes from an external FMU and print the score.
+``navsim fmu host-env``
+    print the LD_PRELOAD / PYTHONHOME / PYTHONPATH lines a non-Python host needs.
 ``navsim fmu info``
     print what a host needs to run navsim's FMUs.
 """
@@ -116,6 +118,16 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_host_env(args) -> int:
+    import shlex
+
+    from .build import host_environment
+
+    for key, value in host_environment().items():
+        print(f"export {key}={shlex.quote(value)}")
+    return 0
+
+
 def _cmd_info(args) -> int:
     from .build import HOST_REQUIREMENTS
 
@@ -173,6 +185,9 @@ def add_fmu_parser(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("host-env", help="the environment a non-Python host needs (export lines)")
+    p.set_defaults(func=_cmd_host_env)
 
     p = sub.add_parser("info", help="what a host needs to run navsim's FMUs")
     p.set_defaults(func=_cmd_info)

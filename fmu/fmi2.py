@@ -19,7 +19,10 @@ from __future__ import annotations
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, mark_failed as _mark_failed
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, guard_embedded_exit
+from .runtime import mark_failed as _mark_failed
+
+guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 
 __all__ = ["PlantSlave", "EstimatorSlave", "pin_module_dict"]
 

@@ -13,7 +13,10 @@ from pythonfmu3 import Fmi3Slave
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
 
-from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, mark_failed as _mark_failed
+from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, guard_embedded_exit
+from .runtime import mark_failed as _mark_failed
+
+guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 
 __all__ = ["PlantSlave", "EstimatorSlave"]
 

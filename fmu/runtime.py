@@ -669,6 +669,30 @@ class EstimatorRuntime(_RuntimeBase):
         w("nav.nis_dof", int(est.nis_dof or 0) if nis is not None else 0)
 
 
+# Exit of a non-Python host. pythonfmu's shim starts Python itself when the host has none
+# and calls Py_Finalize when the shim library is unloaded or the process exits. In that
+# final pass the garbage collector clears scipy's _uarray module (imported through scipy)
+# after the module has freed its own exception type, so a dictionary still holding that
+# type is freed afterwards: a use after free that corrupts the heap (SIGSEGV, exit code
+# 139, in a C host and in the ECOS tool; valgrind shows the free in _uarray's
+# globals_free). Freezing the collector in an atexit handler (which runs at the start of
+# Py_Finalize) leaves those objects to the process's exit instead. Only an interpreter
+# embedded by a non-Python host (empty ``sys.orig_argv``) registers it.
+_EXIT_GUARD: list = []
+
+
+def guard_embedded_exit() -> bool:
+    """Register the exit protection above once in an embedded interpreter; True if registered."""
+    if _EXIT_GUARD or getattr(sys, "orig_argv", None) != []:
+        return False
+    import atexit
+    import gc
+
+    atexit.register(gc.freeze)
+    _EXIT_GUARD.append(True)
+    return True
+
+
 # Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
 # exception into a Fatal status and, in doing so, releases its references to the slave
 # class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
