@@ -113,6 +113,7 @@ from scipy.stats import chi2
 from ..errors import ConfigError
 from ..rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_to_mat
 from ..strapdown import ins as _ins
+from ..strapdown import onestep as _one
 from ..strapdown.ins import InsState
 from .base import NominalImu
 
@@ -135,6 +136,7 @@ __all__ = [
     "solution_rows",
     "state_from_prior",
     "BodyTerms",
+    "StepTerms",
     "body_terms",
     "ErrorStateIns",
     "AuxStateIns",
@@ -644,6 +646,57 @@ def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float
     return BodyTerms(t.rotvec_body, t.dv_body, t.ds_body, t.rule, t.dtheta_first, t.dv_first, float(dt))
 
 
+@dataclass(frozen=True, slots=True)
+class StepTerms:
+    """:class:`BodyTerms` of ONE step as Python floats (3-tuples), for the step-wise path.
+
+    Computed by :func:`navsim.strapdown.onestep.one_step_terms` with the operations of the
+    array forms, so :meth:`ErrorStateIns.advance_body` gives the numbers of a
+    :class:`BodyTerms` batch of one. ``dtheta1`` is the (1, 3) array view callers index.
+    """
+
+    phi: tuple
+    dv_b: tuple
+    ds_b: tuple | None
+    rule: str | None
+    theta1: tuple
+    dv1: tuple
+    dt: float
+
+    def __len__(self) -> int:
+        return 1
+
+    @property
+    def dtheta1(self) -> np.ndarray:
+        """(1, 3) first-order angle increment, rad (as :attr:`BodyTerms.dtheta1`)."""
+        return np.array([self.theta1])
+
+    def compensated(self, gyro_bias, accel_bias):
+        """:meth:`BodyTerms.compensated` of the step on floats (the same operations).
+
+        Returns q(Phi) (4-tuple), dV_b, dS_b (or None), DV - b_a T (3-tuples).
+        """
+        T = self.dt
+        g0, g1, g2 = gyro_bias
+        a0, a1, a2 = accel_bias
+        t0, t1, t2 = self.theta1
+        v0, v1, v2 = self.dv1
+        phi = self.phi
+        phi = (phi[0] - g0 * T, phi[1] - g1 * T, phi[2] - g2 * T)
+        TT = T * T
+        # T (b_g x DV + DTheta x b_a) - T^2 b_g x b_a, component by component
+        c0 = T * ((g1 * v2 - g2 * v1) + (t1 * a2 - t2 * a1)) - TT * (g1 * a2 - g2 * a1)
+        c1 = T * ((g2 * v0 - g0 * v2) + (t2 * a0 - t0 * a2)) - TT * (g2 * a0 - g0 * a2)
+        c2 = T * ((g0 * v1 - g1 * v0) + (t0 * a1 - t1 * a0)) - TT * (g0 * a1 - g1 * a0)
+        d = self.dv_b
+        dv_b = (d[0] - a0 * T - 0.5 * c0, d[1] - a1 * T - 0.5 * c1, d[2] - a2 * T - 0.5 * c2)
+        ds_b = None
+        if self.ds_b is not None:
+            d, h2, t6 = self.ds_b, 0.5 * T * T, T / 6.0
+            ds_b = (d[0] - a0 * h2 - t6 * c0, d[1] - a1 * h2 - t6 * c1, d[2] - a2 * h2 - t6 * c2)
+        return _one.quat_from_rotvec(phi), dv_b, ds_b, (v0 - a0 * T, v1 - a1 * T, v2 - a2 * T)
+
+
 # ============================================================================ the engine
 class ErrorStateIns:
     """INS mechanisation plus a 15-state error covariance with closed-loop feedback.
@@ -686,6 +739,7 @@ class ErrorStateIns:
         self.noise = noise
         self.interval_steps = int(interval_steps)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
+        self._resolved: dict = {}  # input shapes -> resolved (coning, sculling, position)
         self.estimate_biases = bool(estimate_biases)
         self.Qc = noise_density(noise)
         self.state = state_from_prior(prior)
@@ -703,11 +757,32 @@ class ErrorStateIns:
         self._f_count = 0
         self._start_interval(P)
 
+    # -- the INS state ----------------------------------------------------------------
+    @property
+    def state(self) -> InsState:
+        """The corrected INS state at the last processed step."""
+        if self._state is None:  # built on demand after steps of the one-step path
+            lat, lon, h, velocity, quat, compensation = self._flat
+            self._state = InsState(lat, lon, h, np.array(velocity), np.array(quat), compensation)
+        return self._state
+
+    @state.setter
+    def state(self, value: InsState) -> None:
+        self._state = value
+        self._flat = None
+
+    def _floats(self) -> tuple:
+        """The state as Python floats: (lat, lon, h, velocity (3,), quat (4,), compensation)."""
+        if self._flat is None:
+            st = self._state
+            self._flat = (st.lat, st.lon, st.h, st.velocity_n.tolist(), st.quat_nb.tolist(), st.compensation)
+        return self._flat
+
     # -- covariance intervals ----------------------------------------------------------
     def _start_interval(self, P: np.ndarray) -> None:
         """Begin a covariance interval at the current step with covariance P."""
         if self._f_count:  # mean specific force of the interval that ends here
-            self._f_n = self._f_sum / (self._f_count * self.dt)
+            self._f_n = np.asarray(self._f_sum) / (self._f_count * self.dt)
         self._f_sum = np.zeros(3)
         self._f_count = 0
         self._P0 = P
@@ -748,9 +823,35 @@ class ErrorStateIns:
         return self._P0 if self._j == 0 else self._full_covariance(self._j)
 
     # -- propagation -------------------------------------------------------------------
-    def prepare(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> BodyTerms:
-        """Raw (uncompensated) body-frame strapdown terms of n steps, for :meth:`advance_body`."""
+    def prepare(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> BodyTerms | StepTerms:
+        """Raw (uncompensated) body-frame strapdown terms of n steps, for :meth:`advance_body`.
+
+        One step with multiple integrals gives :class:`StepTerms` when the resolved methods
+        have a float form (:mod:`navsim.strapdown.onestep`): the same numbers at a
+        fraction of the array forms' fixed cost.
+        """
+        if dtheta_r is not None and dv_r is not None and len(dtheta_r) == 1:
+            return self.prepare_step(None if dtheta_sub is None else dtheta_sub[0],
+                                     None if dv_sub is None else dv_sub[0], dtheta_r[0], dv_r[0])
         return body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, self.dt, **self.methods)
+
+    def prepare_step(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> BodyTerms | StepTerms:
+        """:meth:`prepare` of one step from its (m, 3) / (R, 3) arrays (a
+        :class:`~navsim.estimators.base.Measurement`'s fields)."""
+        key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
+               dtheta_r.shape, dv_r.shape)
+        methods = self._resolved.get(key)
+        if methods is None:
+            arrays = [None if a is None else np.asarray(a)[None] for a in (dtheta_sub, dv_sub, dtheta_r, dv_r)]
+            methods = self._resolved[key] = _ins.resolve_methods(self.methods["coning"], self.methods["sculling"],
+                                                                 self.methods["position"], *arrays)
+        terms = _one.one_step_terms(methods, dtheta_r.tolist(), dv_r.tolist(),
+                                    None if dtheta_sub is None else dtheta_sub.tolist(),
+                                    None if dv_sub is None else dv_sub.tolist(), self.dt)
+        if terms is None:
+            return body_terms(*(None if a is None else np.asarray(a)[None] for a in (dtheta_sub, dv_sub, dtheta_r, dv_r)),
+                              self.dt, **self.methods)
+        return StepTerms(*terms[:3], None, *terms[3:], self.dt)
 
     def advance(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> tuple[np.ndarray, np.ndarray]:
         """Process n navigation steps of IMU data (arrays as in :class:`MeasurementBatch`).
@@ -767,7 +868,12 @@ class ErrorStateIns:
     def advance_body(self, body: BodyTerms, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`advance` over steps ``start:stop`` of precomputed :class:`BodyTerms`
         (compute them once per batch with :meth:`prepare`; the current bias estimates are
-        applied here)."""
+        applied here). A :class:`StepTerms` (one step) takes the float path of
+        :meth:`_advance_step`, with the same operations."""
+        if isinstance(body, StepTerms):
+            if start != 0 or stop not in (None, 1):
+                raise ConfigError("advance_body", "steps 0:1 of a one-step StepTerms", (start, stop))
+            return self._advance_step(body)
         if self._pending is not None:
             self._start_interval(self._pending)
         quat_b, dv_b, ds_b, dv_first = body.compensated(self.gyro_bias, self.accel_bias, start, stop)
@@ -807,6 +913,50 @@ class ErrorStateIns:
         self.steps += n
         if not (math.isfinite(self.state.lat) and np.all(np.isfinite(self.state.velocity_n))):
             self.diverged = True
+        return rows, cov
+
+    def _advance_step(self, body: StepTerms) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`advance_body` of one step on Python floats: every operation of the array
+        path for a batch of one, in the same order (so the same numbers), without its
+        per-call array set-up; the :class:`InsState` is built only when read."""
+        if self._pending is not None:
+            self._start_interval(self._pending)
+        quat_b, dv_b, ds_b, dv_first = body.compensated(self.gyro_bias.tolist(), self.accel_bias.tolist())
+        lat, lon, h, velocity, quat, compensation = self._floats()
+        pos, vel, quats, compensation = _ins.sequential_rows(
+            lat, lon, h, velocity, quat, compensation, (quat_b,), (dv_b,), None if ds_b is None else (ds_b,),
+            body.rule, self.dt, self.earth)
+        (lat, lon, h), velocity, quat = pos[1], vel[1], quats[1]
+        self._flat = (lat, lon, h, velocity, quat, compensation)
+        self._state = None
+        ve, vn, vu = velocity
+        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(h) and math.isfinite(ve)
+                and math.isfinite(vn) and math.isfinite(vu)):
+            self.state  # noqa: B018  (validates: the error of the array path)
+        q0, q1, q2, q3 = quat
+        c01 = 2.0 * (q1 * q2 - q0 * q3)
+        c11 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+        c20 = 2.0 * (q1 * q3 - q0 * q2)
+        c21 = 2.0 * (q2 * q3 + q0 * q1)
+        c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+        rows = np.array([[lat, lon, h, ve, vn, vu, math.atan2(c01, c11), math.asin(min(max(c21, -1.0), 1.0)),
+                          math.atan2(-c20, c22)]])
+        # specific force in ENU, C(k+1) dV_k / dt (see advance_body)
+        d0, d1, d2 = dv_first
+        u0, u1, u2 = 2.0 * (q2 * d2 - q3 * d1), 2.0 * (q3 * d0 - q1 * d2), 2.0 * (q1 * d1 - q2 * d0)
+        fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
+        self._f_sum = [fs[0] + (d0 + q0 * u0 + (q2 * u2 - q3 * u1)), fs[1] + (d1 + q0 * u1 + (q3 * u0 - q1 * u2)),
+                       fs[2] + (d2 + q0 * u2 + (q1 * u1 - q2 * u0))]
+        self._f_count += 1
+        tau = (self._j + 1) * self.dt
+        if self._poly is None:
+            self._poly = self._series.nav_polynomial(self._P0)
+        # P9(tau) = (tau^p)_p @ coefficients, the (1, 9) @ (9, 81) product of a batch of one
+        cov = (np.array([[tau**p for p in range(9)]]) @ self._poly).reshape(1, 9, 9)
+        self._j += 1
+        if self._j == self.interval_steps:
+            self._pending = self._full_covariance(self._j)
+        self.steps += 1
         return rows, cov
 
     # -- measurement update --------------------------------------------------------------

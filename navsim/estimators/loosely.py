@@ -409,15 +409,33 @@ class LooselyCoupledEkf:
         self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
 
     def step(self, measurement: Measurement) -> Estimate:
-        """One navigation step (the batch path on a batch of one)."""
+        """One navigation step: the batch path on a batch of one at update steps (GNSS epoch,
+        end of an odometer interval), the engine's one-step INS path in between (the same
+        operations, see :meth:`ErrorStateIns.advance_body`)."""
         m = measurement
-        gnss = ((0, m.gnss),) if m.gnss is not None else ()
+        eng = self.engine
+        if eng is None:
+            raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
         odo = getattr(m, "odometer_ds_m", None)
+        if m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0):
+            rows, cov = eng.advance_body(eng.prepare_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r))
+            if self._odo is not None:
+                self._odometer_accumulate(rows, None if odo is None else (odo,), 0, 1)
+            self.diverged = self.diverged or eng.diverged
+            row = rows[0]
+            extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+            if self._fix_index is not None:
+                extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
+            if self._odo is not None:
+                extra["odometer_scale"] = float(eng.aux[0])
+                extra["odometer_nis"] = self.odometer_nis
+            return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
+                            covariance=cov[0], extra=extra)
+        gnss = ((0, m.gnss),) if m.gnss is not None else ()
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
             m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo])))
         row = out.solution[0]
-        eng = self.engine
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
         if self._fix_index is not None:
             extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]

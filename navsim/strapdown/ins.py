@@ -111,6 +111,7 @@ __all__ = [
     "integrate",
     "integrate_body_terms",
     "resolve_methods",
+    "sequential_rows",
 ]
 
 METHODS = ("auto", "sequential", "scan")
@@ -393,6 +394,25 @@ def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, positi
 # ------------------------------------------------------------------------------ the loop
 def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
     """Sequential predictor-corrector loop on Python floats (see the module notes)."""
+    out_pos, out_vel, out_q, compensation = sequential_rows(
+        state.lat, state.lon, state.h, state.velocity_n.tolist(), state.quat_nb.tolist(), state.compensation,
+        quat_body.tolist(), dv_body.tolist(), None if ds_body is None else ds_body.tolist(), rule, dt, earth)
+    pos = np.array(out_pos)
+    return InsSolution(pos[:, 0], pos[:, 1], pos[:, 2], np.array(out_vel), np.array(out_q), compensation)
+
+
+def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compensation, quat_body, dv_body,
+                    ds_body, rule: str | None, dt: float, earth: EarthModel):
+    """The sequential loop of :func:`integrate_body_terms` on Python sequences.
+
+    ``velocity_n`` (3,), ``quat_nb`` (4,), ``compensation`` (3,) of the start state (see
+    :class:`InsState`); ``quat_body`` (n, 4), ``dv_body`` (n, 3), ``ds_body`` (n, 3) or
+    None as nested sequences of floats. Returns ``(positions, velocities, quaternions,
+    compensation)``: lists of n + 1 tuples ``(lat, lon, h)``, ``(vE, vN, vU)``,
+    ``(q0, q1, q2, q3)`` (the first row is the start) and the final compensation terms.
+    The same operations as ``integrate_body_terms(..., method="sequential")``, without
+    array conversions or state validation (for estimators stepped one step at a time).
+    """
     sin, cos, sqrt = math.sin, math.cos, math.sqrt
     a, e2, rate, f = earth.a, earth.e2, earth.rate, earth.f
     spherical = earth.name == "spherical"
@@ -429,11 +449,10 @@ def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | No
         gcu = gu - (wen_e * vn - cn * ve)
         return rnh, reh, cl, wen_e, wie_n + wen_n, wie_u + wen_u, gce, gcn, gcu
 
-    lat, lon, h = state.lat, state.lon, state.h
-    ve, vn, vu = (float(x) for x in state.velocity_n)
-    q0, q1, q2, q3 = (float(x) for x in state.quat_nb)
+    ve, vn, vu = (float(x) for x in velocity_n)
+    q0, q1, q2, q3 = (float(x) for x in quat_nb)
     exact = ds_body is not None
-    ds_list = ds_body.tolist() if exact else [None] * len(dv_body)
+    ds_list = ds_body if exact else [None] * len(dv_body)
     trapezoid = rule == "trapezoid"
     half_dt, dt2_6, third = 0.5 * dt, dt * dt / 6.0, 1.0 / 3.0
     inv_dt = 1.0 / dt
@@ -441,9 +460,9 @@ def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | No
     out_pos = [(lat, lon, h)]
     out_vel = [(ve, vn, vu)]
     out_q = [(q0, q1, q2, q3)]
-    k_lat, k_lon, k_h = state.compensation
+    k_lat, k_lon, k_h = compensation
     ev = evaluate(lat, h, ve, vn, vu)
-    for (b0, b1, b2, b3), (dx, dy, dz), ds in zip(quat_body.tolist(), dv_body.tolist(), ds_list):
+    for (b0, b1, b2, b3), (dx, dy, dz), ds in zip(quat_body, dv_body, ds_list):
         rnh, reh, cl, wx, wy, wz, ge, gn, gu = ev
         # mat_nb(k) from q(k)
         c00 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
@@ -519,8 +538,7 @@ def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | No
         out_vel.append((ve, vn, vu))
         out_q.append((q0, q1, q2, q3))
         ev = evaluate(lat, h, ve, vn, vu)
-    pos = np.array(out_pos)
-    return InsSolution(pos[:, 0], pos[:, 1], pos[:, 2], np.array(out_vel), np.array(out_q), (k_lat, k_lon, k_h))
+    return out_pos, out_vel, out_q, (k_lat, k_lon, k_h)
 
 
 # kept for callers of the former private name (navsim.estimators._inserror); use
