@@ -700,6 +700,9 @@ class PaperEkf:
         self._fused = self._make_fused()
         self._riccati_layout()
         self._kargs = self._kernel_args() if cfg.engine != "python" and _kernel.available() else None
+        self._kstate = None  # the compiled engine's state arrays while they hold the state
+        if self._kargs is not None:
+            self._kstep = (*self._kargs, *self._kin)
         # --- initial state
         y0, p0 = self._state_from_prior(prior)
         self._Y = y0
@@ -1404,9 +1407,43 @@ class PaperEkf:
             self._spe, self._n_c, tf.single, tf.order, self._h_all)
         bar_idx = np.array([i for i, _ in self._bar_fix], dtype=np.int64)
         bar_col = np.array([j for _, j in self._bar_fix], dtype=np.int64)
+        self._kwork = np.zeros(_kernel.work_size(self.n_states))
+        self._kin = (np.ascontiguousarray(self._lvec, dtype=float), np.ascontiguousarray(self._dt_pow, dtype=float),
+                     self._kwork)
         return (c, ic, np.ascontiguousarray(tf._breaks_arr, dtype=float), np.ascontiguousarray(tf._lam_arr, dtype=float),
                 np.ascontiguousarray(tf._h_arr, dtype=float), self._H, self._h_flat_idx.astype(np.int64),
                 np.array(self._h_sup, dtype=np.int64), bar_idx, bar_col)
+
+    def _k_arrays(self):
+        """The compiled engine's state: (flat [Y, K, P, P_start], cov counters, Y, K, P, P_start
+        views), loaded from the reference engine's attributes when those hold the state."""
+        st = self._kstate
+        if st is None:
+            ns = self.n_states
+            flat = np.empty(2 * ns + 2 * ns * ns)
+            Y, K = flat[:ns], flat[ns:2 * ns]
+            P = flat[2 * ns:2 * ns + ns * ns].reshape(ns, ns)
+            P_start = flat[2 * ns + ns * ns:].reshape(ns, ns)
+            Y[:] = self._Y
+            K[:] = 0.0 if self._K is None else self._K
+            P[:] = self._P
+            P_start[:] = self._P_start
+            cov = np.array([self._cov_left, self._cov_len, self._cov_pos], dtype=np.int64)
+            st = self._kstate = (flat, cov, Y, K, P, P_start)
+        return st
+
+    def _k_release(self) -> None:
+        """Hand the state back to the reference engine's attributes (before its code runs)."""
+        st = self._kstate
+        if st is not None:
+            _, cov, Y, K, P, P_start = st
+            self._Y = Y.tolist()
+            self._K = K.tolist()
+            self._P = P.copy()
+            self._P_rows = self._P.tolist()
+            self._P_start = P_start.copy()
+            self._cov_left, self._cov_len, self._cov_pos = (int(x) for x in cov)
+            self._kstate = None
 
     def _run_compiled(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
         """:meth:`_run` with the runs of steps between epochs advanced by the compiled engine.
@@ -1424,31 +1461,17 @@ class PaperEkf:
         t_end = np.ascontiguousarray(t_end, dtype=float)
         inp = np.ascontiguousarray(inp, dtype=float)
         steps = np.ascontiguousarray(steps, dtype=np.int64)
-        Y = np.array(self._Y, dtype=float)
-        P = np.array(self._P, dtype=float)
-        P_start = np.array(self._P_start, dtype=float)
-        K = np.zeros(ns) if self._K is None else np.array(self._K, dtype=float)
-        cov = np.array([self._cov_left, self._cov_len, self._cov_pos], dtype=np.int64)
         advance = _kernel.advance
         i = 0
         while i < n and not self._diverged:
-            i, status = advance(i, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, *self._kargs, out_y, out_p)
-            self._Y = Y.tolist()
-            self._P = P.copy()
-            self._P_rows = self._P.tolist()
-            self._P_start = P_start.copy()
-            self._K = K.tolist()
-            self._cov_left, self._cov_len, self._cov_pos = (int(x) for x in cov)
+            _, cov, Y, K, P, P_start = self._k_arrays()
+            i, status = advance(i, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, *self._kargs, out_y, out_p,
+                                self._kwork)
             if status == _kernel.STATUS_DONE:
                 break
+            self._k_release()
             self._reference_step(i, inp[i].tolist(), float(t_end[i]), int(steps[i]), dtheta_r, dv_r,
                                  epochs.get(i), status != _kernel.STATUS_EPOCH, out_y, out_p, nis, dof)
-            Y[:] = self._Y
-            P[:] = self._P
-            P_start[:] = self._P_start
-            if self._K is not None:
-                K[:] = self._K
-            cov[:] = (self._cov_left, self._cov_len, self._cov_pos)
             i += 1
         return out_y, out_p, nis, dof
 
@@ -1837,15 +1860,50 @@ class PaperEkf:
         if not self._ready:
             raise RuntimeError("call PaperEkf.reset(context, prior) first")
 
+    def _outputs(self, y, p, t):
+        """:meth:`outputs`, by the compiled engine when it is in use (the same expressions)."""
+        if self._kargs is None:
+            return self.outputs(y, p, t)
+        n = len(y)
+        sol = np.empty((n, 9))
+        cov = np.empty((n, 9, 9))
+        c, ic, breaks, lam_c, h_c = self._kargs[:5]
+        _kernel.outputs_compiled(np.ascontiguousarray(y), np.ascontiguousarray(p), np.ascontiguousarray(t, dtype=float),
+                                 c, ic, breaks, lam_c, h_c, sol, cov)
+        return sol, cov
+
+    def _step_compiled(self, measurement: Measurement):
+        """The step-wise path of the compiled engine for a step without an epoch; None when
+        the step needs the general path (sub-steps, a failure), the state then unchanged."""
+        st = self._kstate or self._k_arrays()
+        sol = np.empty(9)
+        cov9 = np.empty((9, 9))
+        status = _kernel.step_one_compiled(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
+                                           np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
+                                           int(measurement.step), st[0], st[1], *self._kstep, sol, cov9)
+        if status != _kernel.STATUS_DONE:
+            return None
+        y = st[2].copy()
+        extra = {"state": y, "state_cov": st[4].copy(), "diverged": False}
+        if self.n_states > 5:
+            extra.update(self._extra_states(y))
+        return Estimate(t=float(measurement.t), lat=float(sol[0]), lon=float(sol[1]), h=float(sol[2]),
+                        velocity_n=sol[3:6], heading=float(sol[6]), pitch=float(sol[7]), roll=float(sol[8]),
+                        covariance=cov9, nis=None, nis_dof=None, extra=extra)
+
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step: (14) over the step, (16) if an epoch ends it."""
         self._require()
+        if self._kargs is not None and measurement.gnss is None and not self._diverged:
+            est = self._step_compiled(measurement)
+            if est is not None:
+                return est
         inp = self._prepare(measurement.dtheta_r[None], measurement.dv_r[None])
         epochs = {} if measurement.gnss is None else {0: measurement.gnss}
         t = np.array([measurement.t])
         y, p, nis, dof = self._propagate(t, inp, measurement.dtheta_r[None], measurement.dv_r[None], epochs,
                                          np.array([measurement.step]))
-        sol, cov = self.outputs(y, p, t)
+        sol, cov = self._outputs(y, p, t)
         extra = {"state": y[0].copy(), "state_cov": p[0].copy(), "diverged": self._diverged}
         extra.update(self._extra_states(y[0]))
         s = sol[0]
@@ -1861,7 +1919,7 @@ class PaperEkf:
         epochs = {int(j): obs for j, obs in batch.gnss}
         t = np.asarray(batch.t, dtype=float)
         y, p, nis, dof = self._propagate(t, inp, batch.dtheta_r, batch.dv_r, epochs, np.asarray(batch.step))
-        sol, cov = self.outputs(y, p, t)
+        sol, cov = self._outputs(y, p, t)
         self.last_states, self.last_state_cov = y, p
         return EstimateBatch(solution=sol, covariance=cov, nis=nis, nis_dof=dof)
 

@@ -16,7 +16,7 @@ differ from the reference (whose products are BLAS calls) by rounding only.
 The functions are plain Python written in the subset that numba compiles (arrays and
 scalars, no Python objects); :func:`advance` is the compiled driver (numba, optional extra
 ``fast``; compiled on its first call and cached on disk); :func:`advance_py` runs the same
-source uncompiled, slowly (tests).
+source uncompiled, slowly (tests; ``advance_uncompiled`` keeps it after compilation).
 
 :func:`advance_py` advances over a run of navigation steps and stops, handing control back
 to the caller, at (a) a step whose start-up stiffness needs adaptive sub-steps (the gain
@@ -39,7 +39,8 @@ import math
 import numpy as np
 
 __all__ = ["STATUS_DONE", "STATUS_SUBSTEPS", "STATUS_FAILED", "STATUS_EPOCH", "advance", "advance_py",
-           "available", "track_scalars", "track_scalars3"]
+           "available", "work_size", "outputs", "outputs_compiled", "prepare_row", "step_one", "step_one_compiled",
+           "track_scalars", "track_scalars3"]
 
 STATUS_DONE = 0  # all steps advanced
 STATUS_SUBSTEPS = 1  # step i needs adaptive sub-steps (not advanced)
@@ -558,15 +559,21 @@ def state_rk4(Y, K, row, t0, tau, first, have_first, c, ic, breaks, lam_c, h_c):
 
 
 # ---------------------------------------------------------------------------- driver
+def work_size(n):
+    """Length of the float work array of :func:`advance_py` and :func:`step_one` for n states."""
+    return 200 + 30 * n + 16 * n * n
+
+
 def advance_py(i0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, breaks, lam_c, h_c,
-               H, flat, h_sup, bar_idx, bar_col, out_y, out_p):
+               H, flat, h_sup, bar_idx, bar_col, out_y, out_p, work):
     """Advance steps i0, i0 + 1, ... of a batch; returns (i, status).
 
     State (modified in place): Y (n,), P (n, n) the covariance at the end of the current
     covariance interval, P_start its start, K (n,) the gain held over it, ``cov`` (3,) int:
     steps left in the interval, its length, the position in it. Outputs of each finished
     step into out_y[i] (n,) and out_p[i] (n, n) (linear in time inside an interval, as the
-    reference engine). Stops with the statuses of the module docstring.
+    reference engine). Stops with the statuses of the module docstring. ``work``: scratch
+    array of at least :func:`work_size` (n) floats (no allocation per call).
     """
     n = Y.shape[0]
     nsteps = t_end.shape[0]
@@ -574,20 +581,23 @@ def advance_py(i0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, br
     limit = c[C_LIMIT]
     spe, n_c, h_all = ic[I_SPE], ic[I_NC], ic[I_HALL]
     n_a = 24 if ic[I_BIASES] else 12
-    first = np.zeros(6)
-    a_dyn = np.zeros(n_a)
-    hneg = np.zeros(n)
-    q_dyn = np.zeros(7)
-    K_new = np.zeros(n)
-    Y_back = np.zeros(n)
-    P_new = np.zeros((n, n))
-    Hh = np.zeros((2 * n, 2 * n))
-    top = np.zeros((n, n))
-    HZ = np.zeros((2 * n, n))
-    m1 = np.zeros((n, n))
-    m2 = np.zeros((n, n))
-    m3 = np.zeros((n, n))
-    m4 = np.zeros((n, n))
+    nn = n * n
+    first = work[0:6]
+    a_dyn = work[6:6 + n_a]
+    q_dyn = work[30:37]
+    o = 40
+    hneg = work[o:o + n]
+    K_new = work[o + n:o + 2 * n]
+    Y_back = work[o + 2 * n:o + 3 * n]
+    o += 3 * n
+    P_new = work[o:o + nn].reshape((n, n))
+    top = work[o + nn:o + 2 * nn].reshape((n, n))
+    m1 = work[o + 2 * nn:o + 3 * nn].reshape((n, n))
+    m2 = work[o + 3 * nn:o + 4 * nn].reshape((n, n))
+    m3 = work[o + 4 * nn:o + 5 * nn].reshape((n, n))
+    m4 = work[o + 5 * nn:o + 6 * nn].reshape((n, n))
+    HZ = work[o + 6 * nn:o + 8 * nn].reshape((2 * n, n))
+    Hh = work[o + 8 * nn:o + 12 * nn].reshape((2 * n, 2 * n))
     for i in range(i0, nsteps):
         row = inp[i]
         t0 = t_end[i] - dt
@@ -654,6 +664,167 @@ def advance_py(i0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, br
     return nsteps, STATUS_DONE
 
 
+advance_uncompiled = advance_py  # the driver's source, never replaced by its compiled form (tests)
+
+
+def prepare_row(dtheta_r, dv_r, lvec, dt_pow, row):
+    """PaperEkf._prepare for one step: omega and f at s = 0, 1/2, 1 and the mean f (21)."""
+    R = dtheta_r.shape[0]
+    for s in range(3):
+        for kind in range(2):
+            src = dtheta_r if kind == 0 else dv_r
+            for ax in range(3):
+                acc = lvec[s, 0] * (src[0, ax] / dt_pow[0])
+                for r in range(1, R):
+                    acc = acc + lvec[s, r] * (src[r, ax] / dt_pow[r])
+                row[6 * s + 3 * kind + ax] = acc
+    for ax in range(3):
+        row[18 + ax] = dv_r[0, ax] / dt_pow[0]
+
+
+def _ek(a, b, g, D):
+    """euler_krylov_matrix (Appendix 1 of 003) into D (3, 3)."""
+    sa, ca = math.sin(a), math.cos(a)
+    sb, cb = math.sin(b), math.cos(b)
+    sg, cg = math.sin(g), math.cos(g)
+    D[0, 0], D[0, 1], D[0, 2] = sb * sa * sg + cb * cg, ca * sg, cb * sa * sg - sb * cg
+    D[1, 0], D[1, 1], D[1, 2] = sb * sa * cg - cb * sg, ca * cg, cb * sa * cg + sb * sg
+    D[2, 0], D[2, 1], D[2, 2] = sb * ca, -sa, cb * ca
+
+
+def _clip1(x):
+    if x > 1.0:
+        return 1.0
+    if x < -1.0:
+        return -1.0
+    return x
+
+
+def output_row(Y, P, t, c, ic, breaks, lam_c, h_c, sol, cov, J, JP, D, B, M):
+    """PaperEkf.outputs for one state: the solution (9) and its 9 x 9 covariance J P J^T."""
+    n = Y.shape[0]
+    a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
+    if not math.isfinite(a + b + g + phi + V):
+        for i in range(9):
+            sol[i] = np.nan
+            for j in range(9):
+                cov[i, j] = np.nan
+        return
+    nb = breaks.shape[0]
+    i = np.searchsorted(breaks, phi, side="right") - 1
+    i = 0 if i < 0 else (nb - 1 if i > nb - 1 else i)
+    x = phi - breaks[i]
+    lam, dlam, ddlam = _horner2(lam_c[i], x)
+    hh, dh, ddh = _horner2(h_c[i], x)
+    sp, cp = math.sin(phi), math.cos(phi)
+    a_e, e2 = c[C_A], c[C_E2]
+    if ic[I_SPHERE]:
+        rn = a_e + hh
+        re = rn
+        drn = dh
+        dre = dh
+    else:
+        w = 1.0 - e2 * sp * sp
+        r_e = a_e / math.sqrt(w)
+        r_n = r_e * (1.0 - e2) / w
+        rn, re = r_n + hh, r_e + hh
+        dre = r_e * e2 * sp * cp / w + dh
+        drn = 3.0 * r_n * e2 * sp * cp / w + dh
+    ratio = re / rn
+    k = dlam * cp * ratio
+    kphi = (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
+    m = dh / rn
+    mphi = ddh / rn - dh * drn / rn ** 2
+    _ek(a, b, g, D)
+    _ek(-phi, lam + c[C_OM] * t, 0.0, B)
+    for r in range(3):  # mat_nb = B D^T
+        for q in range(3):
+            M[r, q] = B[r, 0] * D[q, 0] + B[r, 1] * D[q, 1] + B[r, 2] * D[q, 2]
+    sol[0], sol[1], sol[2] = phi, lam, hh
+    sol[3], sol[4], sol[5] = k * V, V, m * V
+    sol[6] = math.atan2(M[0, 1], M[1, 1])
+    sol[7] = math.asin(_clip1(M[2, 1]))
+    sol[8] = math.atan2(-M[2, 0], M[2, 2])
+    for r in range(9):
+        for q in range(n):
+            J[r, q] = 0.0
+    J[0, 3] = re * cp * dlam
+    J[1, 3] = rn
+    J[2, 3] = dh
+    J[3, 3], J[3, 4] = kphi * V, k
+    J[4, 4] = 1.0
+    J[5, 3], J[5, 4] = mphi * V, m
+    sg, cg, sa, ca = math.sin(g), math.cos(g), math.sin(a), math.cos(a)
+    # columns a_alpha, a_beta, a_gamma of the angle axes; J[6:9, 0:3] = mat_nb @ axes
+    for r in range(3):
+        J[6 + r, 0] = M[r, 0] * cg + M[r, 1] * (-sg)
+        J[6 + r, 1] = M[r, 0] * (sg * ca) + M[r, 1] * (cg * ca) + M[r, 2] * (-sa)
+        J[6 + r, 2] = M[r, 2]
+    J[6, 3] = 1.0
+    J[7, 3] = -dlam * cp
+    J[8, 3] = -dlam * sp
+    for r in range(9):
+        for q in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += J[r, j] * P[j, q]
+            JP[r, q] = acc
+    for r in range(9):
+        for q in range(r, 9):
+            acc = 0.0
+            for j in range(n):
+                acc += JP[r, j] * J[q, j]
+            cov[r, q] = acc
+            cov[q, r] = acc
+
+
+def outputs(Ys, Ps, t, c, ic, breaks, lam_c, h_c, sol, cov):
+    """output_row over a batch: Ys (n, ns), Ps (n, ns, ns), t (n,) -> sol (n, 9), cov (n, 9, 9)."""
+    ns = Ys.shape[1]
+    J = np.zeros((9, ns))
+    JP = np.zeros((9, ns))
+    D = np.zeros((3, 3))
+    B = np.zeros((3, 3))
+    M = np.zeros((3, 3))
+    for i in range(Ys.shape[0]):
+        output_row(Ys[i], Ps[i], t[i], c, ic, breaks, lam_c, h_c, sol[i], cov[i], J, JP, D, B, M)
+
+
+def step_one(dtheta_r, dv_r, t, step, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx,
+             bar_col, lvec, dt_pow, work, sol, cov9):
+    """One navigation step without a GNSS epoch (the step-wise path): inputs, advance_py,
+    outputs. ``state`` = [Y, K, P, P_start] flat (2n + 2n^2), ``work`` as in advance_py.
+    Returns the status of advance_py; outputs (sol (9), cov9 (9, 9)) only when it is
+    STATUS_DONE."""
+    n = H.shape[0] // 2
+    nn = n * n
+    Y = state[0:n]
+    K = state[n:2 * n]
+    P = state[2 * n:2 * n + nn].reshape((n, n))
+    P_start = state[2 * n + nn:].reshape((n, n))
+    o = 64 + 3 * n + 12 * nn  # after advance_py's part of work
+    inp = work[o:o + 21].reshape((1, 21))
+    t_end = work[o + 21:o + 22]
+    t_end[0] = t
+    out_y = work[o + 22:o + 22 + n].reshape((1, n))
+    o += 22 + n
+    out_p = work[o:o + nn].reshape((1, n, n))
+    J = work[o + nn:o + nn + 9 * n].reshape((9, n))
+    JP = work[o + nn + 9 * n:o + nn + 18 * n].reshape((9, n))
+    o += nn + 18 * n
+    D = work[o:o + 9].reshape((3, 3))
+    B = work[o + 9:o + 18].reshape((3, 3))
+    M = work[o + 18:o + 27].reshape((3, 3))
+    steps = np.full(1, step)
+    is_epoch = np.zeros(1, dtype=np.bool_)
+    prepare_row(dtheta_r, dv_r, lvec, dt_pow, inp[0])
+    _, status = advance_py(0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, breaks, lam_c, h_c,
+                           H, flat, h_sup, bar_idx, bar_col, out_y, out_p, work)
+    if status == STATUS_DONE:
+        output_row(out_y[0], out_p[0], t, c, ic, breaks, lam_c, h_c, sol, cov9, J, JP, D, B, M)
+    return status
+
+
 _compiled = []
 
 
@@ -663,9 +834,10 @@ def _compile():
     jit = numba.njit(cache=True, error_model="numpy")
     g = globals()
     for name in ("_piece", "track_scalars", "track_scalars3", "_horner2", "_horner3", "stage", "_kphi", "fused",
-                 "_stage_cstep", "_fill_h", "_gain", "_quad", "riccati_rk4", "_rows_ok", "state_rk4"):
+                 "_stage_cstep", "_fill_h", "_gain", "_quad", "riccati_rk4", "_rows_ok", "state_rk4", "advance_py",
+                 "prepare_row", "_ek", "_clip1", "output_row"):
         g[name] = jit(g[name])
-    return jit(advance_py)
+    return g["advance_py"], jit(outputs), jit(step_one)
 
 
 _found = []
@@ -680,8 +852,22 @@ def available() -> bool:
     return _found[0]
 
 
+def _get(i):
+    if not _compiled:
+        _compiled.extend(_compile())
+    return _compiled[i]
+
+
 def advance(*args):
     """:func:`advance_py` compiled by numba (compiled on the first call, cached on disk)."""
-    if not _compiled:
-        _compiled.append(_compile())
-    return _compiled[0](*args)
+    return _get(0)(*args)
+
+
+def outputs_compiled(*args):
+    """:func:`outputs` compiled."""
+    return _get(1)(*args)
+
+
+def step_one_compiled(*args):
+    """:func:`step_one` compiled."""
+    return _get(2)(*args)

@@ -54,7 +54,7 @@ def _runs(scenario, seed, options, engines, chunk=10_000, monkeypatch=None):
         est.reset(ctx, start.prior)
         if name == "source":  # the compiled engine's driver, run by the interpreter
             est._kargs = est._kernel_args()
-            monkeypatch.setattr(kernel, "advance", kernel.advance_py)
+            monkeypatch.setattr(kernel, "advance", kernel.advance_uncompiled)
         parts = [est.step_batch(b) for b in batches]
         if name == "source":
             monkeypatch.undo()
