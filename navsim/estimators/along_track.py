@@ -602,6 +602,7 @@ class AlongTrackFilter:
         self.F = F
         self.P0 = self.P
         self.k_in = 0  # steps since the interval start
+        self._P_block = None  # (first k, P(k) of the rest of the interval) for step()
 
     def _covariance_at(self, k: np.ndarray) -> np.ndarray:
         """P(t_0 + k dt) = Phi P0 Phi^T + Q for integer step counts k (array)."""
@@ -806,6 +807,51 @@ class AlongTrackFilter:
             cov[:, :, 6:9] = np.nan
         return sol, cov
 
+    def _interval_covariance(self, k: int, step: int) -> np.ndarray:
+        """P at step k of the interval for :meth:`step`: :meth:`_covariance_at` of the steps
+        from k to the next covariance boundary computed in one call on first use (the
+        same per-step numbers as one call per step), then read one by one."""
+        block = self._P_block
+        if block is None or not 0 <= k - block[0] < len(block[1]):
+            rest = self.cov_steps - step % self.cov_steps  # steps up to the next boundary
+            block = self._P_block = (k, self._covariance_at(np.arange(k, k + rest)))
+        return block[1][k - block[0]]
+
+    def _output_one(self, s: float, v: float, P: np.ndarray):
+        """:meth:`_outputs` of one state on Python floats (the same operations)."""
+        table, opt = self.table, self.options
+        x = min(max(s, 0.0), table.length) * table._inv
+        i = min(int(x), table._n - 2)
+        u = x - i
+        step, inv = table.step, table._inv
+        y0, y1 = table.values[i, 3:12].tolist(), table.values[i + 1, 3:12].tolist()
+        d0 = [d * step for d in table.derivs[i, 3:12].tolist()]
+        d1 = [d * step for d in table.derivs[i + 1, 3:12].tolist()]
+        uu = u * u
+        w2 = (1 - u) * (1 - u)  # numpy's x ** 2 is x * x (Python's calls pow)
+        h00, h10, h01, h11 = (1 + 2 * u) * w2, u * w2, uu * (3 - 2 * u), uu * (u - 1)
+        vals = [h00 * y0[j] + h10 * d0[j] + h01 * y1[j] + h11 * d1[j] for j in range(9)]
+        g00, g10, g01, g11 = 6 * uu - 6 * u, 3 * uu - 4 * u + 1, 6 * u - 6 * uu, 3 * uu - 2 * u
+        dt_n = [(g00 * y0[j] + g10 * d0[j] + g01 * y1[j] + g11 * d1[j]) * inv for j in range(3, 6)]
+        w0, w1 = table.w_n[i].tolist(), table.w_n[i + 1].tolist()
+        w_n = [(1 - u) * w0[j] + u * w1[j] for j in range(3)]
+        t_n = vals[3:6]
+        heading = (vals[6] + math.pi) % (2.0 * math.pi) - math.pi  # np.remainder: Python's %
+        sol = np.array([[vals[0], vals[1], vals[2], v * t_n[0], v * t_n[1], v * t_n[2], heading, vals[7], vals[8]]])
+        pad = [0.0] * (self.n_x - 2)
+        J = np.array([[t_n[0], 0.0, *pad], [t_n[1], 0.0, *pad], [t_n[2], 0.0, *pad],
+                      [v * dt_n[0], t_n[0], *pad], [v * dt_n[1], t_n[1], *pad], [v * dt_n[2], t_n[2], *pad],
+                      [w_n[0], 0.0, *pad], [w_n[1], 0.0, *pad], [w_n[2], 0.0, *pad]])
+        floor = self.__dict__.get("_floor")
+        if floor is None:  # the floors of _outputs, fixed by the options
+            att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
+            floor = self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3))
+        cov = (J @ P @ J.T + floor)[None]  # the (9, n) (n, n) (n, 9) products of each row of _outputs
+        if opt.attitude_floor_rad is None:
+            cov[:, 6:9, :] = np.nan
+            cov[:, :, 6:9] = np.nan
+        return sol, cov
+
     def _check_health(self) -> None:
         d = np.diag(self.P)
         if not (np.all(np.isfinite(self.P)) and np.all(d >= -1e-12)):
@@ -848,10 +894,10 @@ class AlongTrackFilter:
         dv_y, ds2_y = self._along_increments(np.asarray(measurement.dv_r, dtype=float), self.dt)
         P, nis, dof = self._advance(float(dv_y), float(ds2_y), measurement.gnss, measurement.step,
                                     getattr(measurement, "odometer_ds_m", None))
-        if P is None:
-            P = self._covariance_at(np.array([self.k_in]))[0]
+        if P is None:  # between covariance boundaries: P(k) of the interval, computed ahead
+            P = self._interval_covariance(self.k_in, measurement.step)
         self.t = measurement.t
-        sol, cov = self._outputs(np.array([self.x[0]]), np.array([self.x[1]]), P[None])
+        sol, cov = self._output_one(float(self.x[0]), float(self.x[1]), P)
         self.last_extra = self._extra(nis, dof)
         s = sol[0]
         return Estimate(t=measurement.t, lat=s[0], lon=s[1], h=s[2], velocity_n=s[3:6], heading=s[6], pitch=s[7],

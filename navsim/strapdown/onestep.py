@@ -50,7 +50,7 @@ def quat_from_rotvec(v: Sequence[float]) -> tuple[float, float, float, float]:
     angle2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
     angle = math.sqrt(angle2)
     if angle < 1e-4:  # sin(a/2)/a = 1/2 - a^2/48 + a^4/3840
-        half_sinc = 0.5 - angle2 / 48.0 + angle2**2 / 3840.0
+        half_sinc = 0.5 - angle2 / 48.0 + angle2 * angle2 / 3840.0  # numpy's x ** 2 is x * x
     else:
         half_sinc = math.sin(0.5 * angle) / angle
     return (math.cos(0.5 * angle), half_sinc * v[0], half_sinc * v[1], half_sinc * v[2])
