@@ -11,15 +11,21 @@ Rows
   N = 64 for comparison, in env-steps per second. Timed windows always include
   simulator chunk generation (at least two chunk rounds); ``score=False`` (no episode
   record: scoring costs memory, not step time);
+* the same at N = 1024 with the IMU error model's NumPy path (the compiled white-noise
+  pass of :mod:`navsim.sensors._imu_kernel` switched off: the state before it);
 * the floor of the sensor model: drawing, for N = 1024 members with their own
   generators, only the standard normals one env-step needs (6 (R + 2) = 36 per IMU
   sample, plus the GNSS and outage blocks of one epoch per ``steps_per_epoch`` steps),
-  with nothing else computed. No implementation that keeps each member's numbers
-  equal to its single env (its own PCG64 stream, the exact noise model) can step
-  faster than this on one core.
+  with nothing else computed, into buffers allocated and written once before the timed
+  draws (a fresh 75 MB array per window would time page faults too). No implementation
+  that keeps each member's numbers equal to its single env (its own PCG64 stream, the
+  exact noise model) can step faster than this on one core.
 
 Timing: alternating windows, the median of ``--rounds`` windows per row; the machine's
-load average is printed (the machine may be shared).
+load average is printed (the machine may be shared). The vector envs and the floor are
+also given per CPU second of this process (``time.process_time``, all threads), the
+figure to compare with the floor on a loaded machine; with ``threads=2`` CPU time
+counts both threads, so its speed-up is read from the wall-clock column.
 
 Usage: ``python benchmarks/bench_env.py [--rounds 3] [--quick]``
 """
@@ -35,6 +41,8 @@ import gymnasium as gym
 import numpy as np
 
 import navsim.envs  # noqa: F401  (registers the ids)
+from navsim.sensors import _imu_kernel
+from navsim.sensors import imu as imu_mod
 
 
 def _single_rate(env, action, seconds: float) -> float:
@@ -53,17 +61,21 @@ def _single_rate(env, action, seconds: float) -> float:
             return n / (now - t0)
 
 
-def _vector_rate(venv, steps: int) -> float:
+def _vector_rate(venv, steps: int) -> tuple[float, float]:
+    """(member-steps per CPU second of this process, per wall second)."""
     n = venv.num_envs
     action = np.zeros((n, 9))
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     for _ in range(steps):
         venv.step(action)
-    return steps * n / (time.perf_counter() - t0)
+    return steps * n / (time.process_time() - c0), steps * n / (time.perf_counter() - t0)
 
 
-def _draw_floor(n: int, steps: int) -> float:
-    """Env-steps/s of drawing only the normals and uniforms of the paper scenario's sensors."""
+def _draw_floor(n: int, steps: int, rounds: int) -> list[float]:
+    """Member-steps per CPU second of drawing only the normals and uniforms of the paper
+    scenario's sensors, for ``n`` members with their own generators, into buffers that are
+    allocated and written once before timing (so no page faults are timed), one window per
+    round."""
     from navsim.scenario import load_scenario
     from navsim.simulator import Simulator
 
@@ -73,12 +85,20 @@ def _draw_floor(n: int, steps: int) -> float:
     imu = np.empty((n, steps * timing.samples_per_step, 6 * (orders + 2)))
     epochs = max(1, steps // timing.steps_per_epoch)
     gnss, outages = np.empty((n, epochs, 2 + 3 * m)), np.empty((n, epochs, 1 + m))
-    t0 = time.perf_counter()
-    for j, rng in enumerate(rngs):
-        rng.standard_normal(out=imu[j])
-        rng.standard_normal(out=gnss[j])
-        rng.random(out=outages[j])
-    return n * steps / (time.perf_counter() - t0)
+
+    def draw():
+        for j, rng in enumerate(rngs):
+            rng.standard_normal(out=imu[j])
+            rng.standard_normal(out=gnss[j])
+            rng.random(out=outages[j])
+
+    draw()  # touch every page
+    rates = []
+    for _ in range(rounds):
+        t0 = time.process_time()
+        draw()
+        rates.append(n * steps / (time.process_time() - t0))
+    return rates
 
 
 def main() -> None:
@@ -112,7 +132,10 @@ def main() -> None:
     if not args.quick:
         vector_rows.append(("native vector env, N = 1024", 1024, "vector_entry_point", 1))
         vector_rows.append(("native vector env, N = 1024, 2 threads", 1024, "vector_entry_point", 2))
+        vector_rows.append(("native vector env, N = 1024, NumPy IMU path (no numba)", 1024, "vector_entry_point", 1))
+    cpu: dict[str, list[float]] = {}
     for label, n, mode, threads in vector_rows:
+        imu_mod.USE_KERNEL = "NumPy IMU path" not in label
         extra = {"threads": threads} if mode == "vector_entry_point" else {}
         venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False, **extra)
         venv.reset(seed=0)
@@ -120,17 +143,35 @@ def main() -> None:
         steps = 2 * chunk + 10 if not args.quick else chunk + 10
         if mode == "sync":
             steps = min(steps, 3000)
-        rates[label] = [_vector_rate(venv, steps) for _ in range(1 if n >= 1024 or mode == "sync" else rounds)]
+        measured = [_vector_rate(venv, steps) for _ in range(rounds if n < 1024 or not args.quick else 1)]
+        rates[label] = [w for _, w in measured]
+        cpu[label] = [c for c, _ in measured]
         venv.close()
-    rates["floor: the draws alone, N = 1024"] = [_draw_floor(1024, 256) for _ in range(rounds)]
+    imu_mod.USE_KERNEL = True
+    floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
+    floor = _draw_floor(1024, 256, rounds)
+    cpu[floor_label] = floor
 
-    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; median of {rounds} window(s)")
-    header = f"{'':38s} {'steps/s':>12s} {'x CartPole':>11s} {'x single env':>13s}"
-    print(header)
-    print("-" * len(header))
-    for label, values in rates.items():
-        rate = statistics.median(values)
-        print(f"{label:38s} {rate:12,.0f} {rate / cartpole:11.2f} {rate / single:13.2f}")
+    kernel = "compiled (numba)" if _imu_kernel.available() else "NumPy (numba not installed)"
+    print(f"IMU white-noise pass: {kernel}. Load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (the machine may be shared); median of "
+          f"{rounds} window(s). Single envs: steps per wall second. Vector envs: member-steps per wall second, "
+          "and per CPU second of this process (all its threads) beside the draw floor, which is CPU time on one "
+          "core.\n")
+    print("| env | steps/s (wall) | x CartPole | x single env | per CPU s | x floor (CPU) |")
+    print("|---|---:|---:|---:|---:|---:|")
+    floor_cpu = statistics.median(floor)
+    for label in [*rates, floor_label]:
+        c = statistics.median(cpu[label]) if label in cpu else None
+        cols = f"| {c:,.0f} | {c / floor_cpu:.2f} |" if c is not None else "| | |"
+        if label in rates:
+            rate = statistics.median(rates[label])
+            print(f"| {label} | {rate:,.0f} | {rate / cartpole:.2f} | {rate / single:.2f} {cols}")
+        else:
+            print(f"| {label} | | | {cols}")
+    if not args.quick:
+        one, two = (statistics.median(rates[f"native vector env, N = 1024{x}"]) for x in ("", ", 2 threads"))
+        print(f"\nthreads=2 / one thread at N = 1024 (wall): {two / one:.2f} (goal 1.7 on 2 idle cores; the load "
+              "average above says how idle they were)")
 
 
 if __name__ == "__main__":

@@ -467,11 +467,12 @@ def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, ex
         states, rngs = [sim.imu_state for sim in part], [sim.rngs["imu"] for sim in part]
         for s0 in range(0, ns, span):
             s = slice(s0, s0 + span)
-            tile, states = imu_mod.apply_imu_errors_batch(
-                t_start[s], h, dtheta_true[s], dv_true[s], omega_end[s], force_end[s], model, states, rngs)
             rows = slice(g0, g0 + len(part))
-            out.dtheta_r[rows, s], out.dv_r[rows, s] = tile.dtheta_r, tile.dv_r
-            out.rate_b[rows, s], out.accel_b[rows, s] = tile.rate_b, tile.accel_b
+            dest = imu_mod.ImuOutput(out.dtheta_r[rows, s], out.dv_r[rows, s], out.rate_b[rows, s],
+                                     out.accel_b[rows, s])  # views: written in place
+            _, states = imu_mod.apply_imu_errors_batch(
+                t_start[s], h, dtheta_true[s], dv_true[s], omega_end[s], force_end[s], model, states, rngs,
+                out=dest)
         for sim, state in zip(part, states):
             sim.imu_state = state
 

@@ -109,6 +109,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cholesky, hilbert
 
 from ..errors import ConfigError
+from . import _imu_kernel
 from ._common import frozen_array
 
 __all__ = [
@@ -134,6 +135,10 @@ __all__ = [
 
 MAX_ORDER = 8
 """Largest number R of multiple-integral orders the error model handles."""
+
+USE_KERNEL = True
+"""Use the compiled white-noise pass when numba is installed (:mod:`navsim.sensors._imu_kernel`;
+the numbers are the same either way)."""
 
 QUANTIZATION_BLOCK = 1024
 """Quantizer accumulators are renormalised every this many samples (global index)."""
@@ -728,6 +733,29 @@ class ImuState:
         zeros_q = np.zeros((2, MAX_ORDER + 1, 3))
         return cls(0, turn_on, gauss_markov, np.zeros((2, 3)), zeros_q, zeros_q)
 
+    @classmethod
+    def _batch(cls, sample_index: int, turn_on: Sequence[NDArray], gauss_markov: NDArray, random_walk: NDArray,
+               accumulator: NDArray, count: NDArray) -> list[ImuState]:
+        """The states of B members after a batched call: each (B, ...) array is copied once
+        to a read-only array and member j gets read-only views of row j (the shapes are
+        those of the batch arrays by construction, so the per-member checks are skipped).
+        ``turn_on`` holds the members' own (already read-only) turn-on biases."""
+        rows = []
+        for a in (gauss_markov, random_walk, accumulator, count):
+            a = np.array(a, dtype=float, copy=True)
+            a.setflags(write=False)
+            rows.append(a)
+        index = int(sample_index)
+        out = []
+        for j, t in enumerate(turn_on):
+            state = object.__new__(cls)
+            for name, value in zip(("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator",
+                                    "quant_count"), (t, rows[0][j], rows[1][j], rows[2][j], rows[3][j])):
+                object.__setattr__(state, name, value)
+            object.__setattr__(state, "sample_index", index)
+            out.append(state)
+        return out
+
     def quantization_residual(
         self, model: ImuErrorModel, h: float, order: int
     ) -> NDArray[np.float64]:
@@ -874,6 +902,37 @@ def _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b):
     return t_start, dtheta_r, dv_r, omega_b, f_b
 
 
+def _kernel_sensor(kern, s_idx, sensor, out, rate, z, order, members, turn_on, gm_start, sigma_gm, rrw_start,
+                   rrw_gain, varying, h_r_fact, t_start, t_end, h, noise_factor, scale_density, dest=None):
+    """One sensor's outputs (B, n, R, 3), (B, n, 3) with the compiled white-noise pass.
+
+    ``out`` (n, R, 3) and ``rate`` (n, 3) are the noise-free values shared by the members
+    (after scale factor, misalignment and g-sensitivity). The bias and vibration terms are
+    added in the order of the NumPy path (bias, then each harmonic, then the noise), never
+    in place (``out`` may be the caller's array). ``dest``: (out_r, out_rate) to write into.
+    """
+    base_r, base_rate = out[None], rate[None]
+    constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
+    if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
+            or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
+        bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
+        base_r = base_r + bias[:, :, None, :] * h_r_fact[None, None, :, None]  # b h^r / r!
+        base_rate = base_rate + bias
+    for harm in sensor.vibration:
+        integrals = harmonic_multiple_integrals(1.0, harm.frequency_hz, harm.phase_rad, t_start, h, order)
+        base_r = base_r + (integrals[:, :, None] * harm.amplitude[None, None, :])[None]
+        wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
+        base_rate = base_rate + (wave[:, None] * harm.amplitude[None, :])[None]
+    n = out.shape[0]
+    if dest is None:
+        out_r, out_rate = np.empty((members, n, order, 3)), np.empty((members, n, 3))
+    else:
+        out_r, out_rate = dest
+    kern(z.reshape(members, n, -1), s_idx * 3 * (order + 2), noise_factor, np.ascontiguousarray(scale_density), h,
+         np.broadcast_to(base_r, out_r.shape), np.broadcast_to(base_rate, out_rate.shape), out_r, out_rate)
+    return out_r, out_rate
+
+
 def apply_imu_errors(
     t_start: ArrayLike,
     h: float,
@@ -928,6 +987,7 @@ def apply_imu_errors_batch(
     model: ImuErrorModel,
     states: Sequence[ImuState],
     rngs: Sequence[np.random.Generator],
+    out: ImuOutput | None = None,
 ) -> tuple[ImuOutput, list[ImuState]]:
     """Apply one error model to B IMUs that sense the same true motion, in one pass.
 
@@ -944,6 +1004,9 @@ def apply_imu_errors_batch(
         Their ``sample_index`` must be equal (lockstep).
     rngs : sequence of B numpy.random.Generator
         Generator j draws one ``(n, 6 (R + 2))`` block.
+    out : ImuOutput, optional
+        Arrays (views allowed) of the output shapes to write the result into; it is then
+        the returned output (the simulator's chunk buffers, saving a copy).
 
     Returns
     -------
@@ -1015,8 +1078,11 @@ def apply_imu_errors_batch(
         rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
     else:
         rrw_next = zero_bias
-    varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
-    varying += np.concatenate((rrw_start[:, None], rrw_next[:, :-1]), axis=1)
+    if gm_next is zero_bias and rrw_next is zero_bias:
+        varying = zero_bias  # both switched off: the sum below is exact zeros too
+    else:
+        varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
+        varying += np.concatenate((rrw_start[:, None], rrw_next[:, :-1]), axis=1)
 
     density = np.stack([s.white_noise_density for s in sensors])  # (2, 3)
     noise_factor = _unit_noise_factor(order)
@@ -1026,6 +1092,9 @@ def apply_imu_errors_batch(
     acc_new = np.stack([s.quant_accumulator for s in states])  # (B, 2, MAX_ORDER + 1, 3)
     count_new = np.stack([s.quant_count for s in states])
     t_end = t_start + h
+    kern = _imu_kernel.kernel() if USE_KERNEL else None
+    dest_output = out  # (the name ``out`` is reused below)
+    dest_all = None if out is None else ((out.dtheta_r, out.rate_b), (out.dv_r, out.accel_b))
     outputs = []
     for s_idx, (sensor, true_r, true_rate) in enumerate(
         ((model.gyro, dtheta_r, omega_b), (model.accel, dv_r, f_b))
@@ -1041,6 +1110,14 @@ def apply_imu_errors_batch(
         if s_idx == 0 and np.any(model.g_sensitivity):
             out = out + _mat3_apply(model.g_sensitivity, dv_r)
             rate = rate + _mat3_apply(model.g_sensitivity, f_b)
+        if kern is not None and np.any(density[s_idx]) and not lsb_levels[s_idx, 0] > 0.0:
+            # compiled white-noise pass (navsim.sensors._imu_kernel): the same terms in the
+            # same order as below, without repeating the shared values per member
+            dest = None if dest_all is None else dest_all[s_idx]
+            outputs.append(_kernel_sensor(kern, s_idx, sensor, out, rate, z, order, members, turn_on, gm_start,
+                                          sigma_gm, rrw_start, rrw_gain, varying, h_r_fact, t_start, t_end, h,
+                                          noise_factor, noise_scale[:, None] * density[s_idx][None, :], dest))
+            continue
         # from here on the members differ; ``out`` in the layout (R, B, n, 3)
         out = np.repeat(out.transpose(1, 0, 2)[:, None], members, axis=1)
         rate = np.repeat(rate[None], members, axis=0)  # (B, n, 3)
@@ -1094,14 +1171,16 @@ def apply_imu_errors_batch(
             out = out.transpose(1, 2, 0, 3)  # (B, n, R, 3)
         outputs.append((out, rate))
 
-    new_states = [
-        ImuState(index + n, s.turn_on_bias, gm_next[j, -1], rrw_next[j, -1], acc_new[j], count_new[j])
-        for j, s in enumerate(states)
-    ]
-    output = ImuOutput(
-        dtheta_r=outputs[0][0], dv_r=outputs[1][0], rate_b=outputs[0][1], accel_b=outputs[1][1]
-    )
-    return output, new_states
+    new_states = ImuState._batch(index + n, [s.turn_on_bias for s in states], gm_next[:, -1], rrw_next[:, -1],
+                                 acc_new, count_new)
+    if dest_all is None:
+        return ImuOutput(dtheta_r=outputs[0][0], dv_r=outputs[1][0], rate_b=outputs[0][1],
+                         accel_b=outputs[1][1]), new_states
+    for (values, rate), (dest_r, dest_rate) in zip(outputs, dest_all):
+        if values is not dest_r:  # the kernel wrote in place
+            dest_r[...] = values
+            dest_rate[...] = rate
+    return dest_output, new_states
 
 
 # --------------------------------------------------------------------------------------
