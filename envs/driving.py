@@ -25,15 +25,28 @@ The estimated arc length is the estimate's position projected on the track (the 
 near the previous one; the speed is the estimated velocity along the track tangent.
 
 ## Rewards
-Per decision: ``-w_comfort * jerk^2 * T - w_energy * E_kWh`` (jerk of the true motion over
-the period, m/s^3; traction energy). At each stop at a station (the true speed reaches 0
-with the true arc length within ``stop_tolerance_m`` of the mark):
-``+ stop_bonus * (1 - |stop error| / stop_tolerance_m) - w_late * max(0, late) / 60 -
-w_early * max(0, early) / 60`` (lateness / earliness against the schedule, s). The train
-then dwells (commands are ignored) until ``max(arrival + dwell, scheduled departure)``.
-Stopping more than ``stop_tolerance_m`` beyond a mark is an overrun: ``-overrun_penalty``
-and the episode terminates. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10,
-w_late 1 per minute, w_early 0.2 per minute, overrun_penalty 20, stop_tolerance_m 2.
+Per decision period ``[t0, t1]``::
+
+    r = -w_comfort * jerk^2 * T - w_energy * E_kWh - w_late * L / 60
+
+with the jerk of the true motion over the period (m/s^3), the traction energy, and
+``L = sum_i (max(0, t1 - a_i) - max(0, t0 - a_i))`` (s): lateness accrues, as time passes,
+at every station i not yet served whose scheduled arrival ``a_i`` has passed (so a
+station's lateness totals ``arrival - a_i`` when it is served late, and keeps growing
+while it is not). At a stop at a station (the true speed reaches 0 with the true arc
+length within ``stop_tolerance_m`` of the mark):
+``+ stop_bonus * (1 - |stop error| / stop_tolerance_m) - w_early * max(0, early) / 60``
+(earliness against the schedule, s). The train then dwells (commands are ignored) until
+``max(arrival + dwell, scheduled departure)``. Passing a mark by more than
+``stop_tolerance_m`` (stopped beyond it, or 200 m past it) is an overrun: ``-overrun``,
+the station is missed and the next one becomes the target. At the episode end every
+station never reached costs ``-unserved`` (twice an overrun by default: its passengers
+are never served, and the charge stands for the lateness that would go on accruing
+beyond the episode's time limit, which the accrual above cannot see). Standing still
+therefore costs the lateness of every station plus ``unserved`` per station; driving through every station costs
+``overrun`` per station plus the energy; a driver keeping to the timetable earns the
+stop bonuses. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10, w_late 5
+per minute, w_early 0.2 per minute, overrun 20, unserved 40, stop_tolerance_m 2.
 
 ## Starting state
 At rest at the first station, departing at its dwell time; the schedule is the core's
@@ -41,12 +54,13 @@ jerk-limited minimum-time timetable (the scenario's ``motion`` section) stretche
 ``1 + slack`` (default 5 %).
 
 ## Episode end
-Terminated when the last station is served or on an overrun; truncated when the
+Terminated when the last station is served or missed (overrun); truncated when the
 scenario's time runs out (the duration is extended to 1.25 x the scheduled journey).
 ``info["episode_score"]`` at the end: the estimator's navigation score over the episode.
 
 ## Version History
-* v0: initial version.
+* v0: initial version; lateness charged as it accrues, unserved stations charged at the
+  end, an overrun misses the station instead of ending the episode (issue 15).
 
 References
 ----------
@@ -147,7 +161,7 @@ class DrivingEnv(gym.Env):
         Default "along-track".
     decision_period_s, slack, stop_tolerance_m : float
     weights : dict, optional
-        Overrides of ``comfort, energy, stop_bonus, late, early, overrun``.
+        Overrides of ``comfort, energy, stop_bonus, late, early, overrun, unserved``.
     train : TrainParameters, optional
     truth_in_info : bool
         Put the true s, v, a in the info.
@@ -156,7 +170,8 @@ class DrivingEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
-    WEIGHTS = {"comfort": 0.05, "energy": 0.05, "stop_bonus": 10.0, "late": 1.0, "early": 0.2, "overrun": 20.0}
+    WEIGHTS = {"comfort": 0.05, "energy": 0.05, "stop_bonus": 10.0, "late": 5.0, "early": 0.2, "overrun": 20.0,
+               "unserved": 40.0}
 
     def __init__(self, scenario="mountain-railway", *, estimator: Any = "along-track",
                  estimator_options: dict | None = None, decision_period_s: float = 1.0, slack: float = 0.05,
@@ -227,6 +242,7 @@ class DrivingEnv(gym.Env):
         self._s_hat = float(self.marks[0])
         self._v_hat, self._sigma_s, self._frac_valid = 0.0, 0.0, 0.0
         self.energy_kwh = 0.0
+        self.late_charged_s = 0.0
         self.stops: list[dict] = []
         info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "marks_m": self.marks.copy(),
                 "scheduled_arrival_s": self.sched_arr.copy(), "scheduled_departure_s": self.sched_dep.copy()}
@@ -291,27 +307,37 @@ class DrivingEnv(gym.Env):
         e_kwh = energy_j / 3.6e6
         self.energy_kwh += e_kwh
         reward = -w["comfort"] * jerk * jerk * period - w["energy"] * e_kwh
+        # lateness accrues, over this period, at every station not yet served whose scheduled arrival has passed
+        due = self.sched_arr[self.target:]
+        late_inc = float(np.sum(np.maximum(self.t - due, 0.0) - np.maximum(k0 * self.dt - due, 0.0)))
+        reward -= w["late"] * late_inc / 60.0
+        self.late_charged_s += late_inc
         terminated = False
-        info: dict = {"energy_kwh": self.energy_kwh, "station": self.target}
+        info: dict = {"energy_kwh": self.energy_kwh, "station": self.target, "late_charged_s": self.late_charged_s}
         # stop events, judged on the true motion
         if not dwelling and self.target < len(self.marks):
             mark = float(self.marks[self.target])
             s_true, v_true = float(s[-1]), float(v[-1])
             if s_true > mark + self.stop_tolerance_m and (v_true == 0.0 or s_true > mark + 200.0):
-                reward -= w["overrun"]
-                terminated = True
+                reward -= w["overrun"]  # the station is missed; the train goes on to the next one
                 info["overrun_m"] = s_true - mark
+                self.stops.append({"station": self.target, "overrun_m": s_true - mark, "t": self.t})
+                self.target += 1
             elif v_true == 0.0 and abs(s_true - mark) <= self.stop_tolerance_m:
                 stop_error = s_true - mark
                 late = self.t - float(self.sched_arr[self.target])
                 reward += w["stop_bonus"] * (1.0 - abs(stop_error) / self.stop_tolerance_m)
-                reward -= w["late"] * max(late, 0.0) / 60.0 + w["early"] * max(-late, 0.0) / 60.0
+                reward -= w["early"] * max(-late, 0.0) / 60.0  # lateness was charged as it accrued
                 self.stops.append({"station": self.target, "stop_error_m": stop_error, "late_s": late, "t": self.t})
                 info["stop_error_m"], info["late_s"] = stop_error, late
                 self.hold_until = max(self.t + float(self.dwell[self.target]), float(self.sched_dep[self.target]))
                 self.target += 1
-                if self.target == len(self.marks):
-                    terminated = True
+            if self.target == len(self.marks):
+                terminated = True
+        if terminated or self._k >= self.n_steps:
+            unserved = len(self.marks) - self.target  # stations never reached
+            reward -= w["unserved"] * unserved
+            info["unserved"] = unserved
         if self.truth_in_info:
             info["truth"] = {"s": float(s[-1]), "speed": float(v[-1]), "accel": float(a[-1])}
         truncated = not terminated and self._k >= self.n_steps

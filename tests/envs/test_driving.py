@@ -101,3 +101,55 @@ def test_full_traction_overruns_and_is_penalised():
         if term or trunc:
             break
     assert term and info["overrun_m"] > 2.0 and total < -20.0
+
+
+# ---------------------------------------------------------------- the reward: lateness accrues, unserved stations cost
+TWO_STOPS = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 10.0}, {"s_m": 1500.0, "dwell_s": 20.0}]}}
+THREE_STOPS = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 10.0}, {"s_m": 1500.0, "dwell_s": 20.0},
+                                       {"s_m": 3000.0, "dwell_s": 10.0}]}}
+STAND = lambda obs: np.array([0.0], np.float32)  # noqa: E731
+CONSTANT = lambda obs: np.array([0.3], np.float32)  # noqa: E731  the naive driver: one command all the way
+
+
+_timetable_driver = _driver  # braking curve on the estimate, cruising at 17 m/s: on time for the 5 %-stretched timetable
+
+
+def _episode(policy, seed, layout, **kwargs):
+    env = gym.make("navsim/TrainDriving-v0", **layout, **kwargs)
+    obs, info = env.reset(seed=seed)
+    total = 0.0
+    while True:
+        obs, r, term, trunc, info = env.step(policy(obs))
+        total += r
+        if term or trunc:
+            return total, info, env.unwrapped
+
+
+def test_standing_still_costs_the_accrued_lateness_and_the_unserved_stations():
+    # comfort and energy off: what is left is the lateness and the unserved charge
+    total, info, env = _episode(STAND, 100, TWO_STOPS, weights={"comfort": 0.0, "energy": 0.0})
+    w = env.weights
+    end = env.steps_done * env.dt
+    # closed form: station 1 late from its scheduled arrival to the end (sum of per-period increments: rel 1e-9)
+    expected = -w["late"] * sum(max(end - a, 0.0) for a in env.sched_arr[1:]) / 60.0 - w["unserved"] * 1
+    assert info["unserved"] == 1 and info["stops"] == []
+    assert total == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    assert total < -w["unserved"] - 2.0  # the lateness (27 s at 5 per minute) is a real part of it
+
+
+def test_reward_orders_standing_naive_and_timetable_drivers():
+    """Held-out seed (no policy was tuned on it): standing still < constant command < timetable driver."""
+    stand = _episode(STAND, 100, TWO_STOPS)
+    naive = _episode(CONSTANT, 100, TWO_STOPS)
+    timed = _episode(_timetable_driver, 100, TWO_STOPS)
+    assert "overrun_m" in naive[1] and naive[1]["unserved"] == 0  # drove through the station: missed, not unserved
+    (stop,) = timed[1]["stops"]
+    assert abs(stop["stop_error_m"]) <= 2.0 and stop["late_s"] <= 0.0
+    assert stand[0] + 10.0 < naive[0] < timed[0] - 20.0
+
+
+@pytest.mark.slow
+def test_reward_order_three_stations_three_held_out_seeds():
+    for seed in (100, 101, 102):
+        stand, naive, timed = (_episode(p, seed, THREE_STOPS)[0] for p in (STAND, CONSTANT, _timetable_driver))
+        assert stand + 10.0 < naive < timed - 30.0
