@@ -29,6 +29,7 @@ import datetime
 import json
 import shutil
 import sys
+import tempfile
 import uuid
 import zipfile
 from pathlib import Path
@@ -308,7 +309,7 @@ def variable_tables(scenario, estimator: str | None = None, estimator_options: s
 
 
 def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | None = None, *,
-              estimator: str | None = None, estimator_options: str = "") -> Path:
+              estimator: str | None = None, estimator_options: str = "", guarded: bool = True) -> Path:
     """Build a plant or estimator FMU of ``scenario``.
 
     Parameters
@@ -321,6 +322,9 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     estimator : registered estimator name for the estimator FMU (default ``paper-ekf``
         when installed, else ``lc-ekf``); the FMU parameter ``estimator.name``.
     estimator_options : TOML ``key = value`` lines passed to ``navsim.estimators.make``.
+    guarded : put the C guard of :mod:`navsim.fmu.guard` (FMI state machine, misuse
+        answered with error statuses) in front of the Linux shim when gcc and fmpy's FMI
+        headers are available (``navsim_fmu.json`` says whether it is there).
 
     Returns
     -------
@@ -371,17 +375,43 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     output = Path(output or f"{scenario.name}-{what}-fmi{fmi}.fmu")
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(output.name + ".part")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr("modelDescription.xml", xml)
-        for lib in sorted((shim_dir / "resources" / "binaries").rglob("*")):
-            if lib.suffix in (".so", ".dll", ".dylib"):
-                z.write(lib, f"binaries/{lib.parent.name}/{identifier}{lib.suffix}")
-        for name, blob in resources.items():
-            z.writestr(f"resources/{name}", blob)
-        for src in sorted(shim_dir.glob("*.py")):
-            z.write(src, f"resources/{package}/{src.name}")
-        z.writestr("documentation/index.html",
-                   "<html><body><pre>\n" + HOST_REQUIREMENTS.replace("&", "&amp;").replace("<", "&lt;")
-                   + "\n</pre></body></html>\n")
+    with tempfile.TemporaryDirectory() as work:
+        from .guard import compile_guard
+
+        guard = compile_guard(fmi, parameter_references(table, fmi), identifier, Path(work)) if guarded else None
+        meta["guard"] = guard is not None
+        resources[META_FILE] = json.dumps(meta, indent=1).encode()
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", xml)
+            for lib in sorted((shim_dir / "resources" / "binaries").rglob("*")):
+                if lib.suffix in (".so", ".dll", ".dylib"):
+                    if lib.suffix == ".so" and guard is not None:  # the guard in front of the shim (guard.py)
+                        z.write(guard, f"binaries/{lib.parent.name}/{identifier}.so")
+                        z.write(lib, f"binaries/{lib.parent.name}/{identifier}_pythonfmu.so")
+                    else:
+                        z.write(lib, f"binaries/{lib.parent.name}/{identifier}{lib.suffix}")
+            _write_resources(z, resources, shim_dir, package)
     shutil.move(tmp, output)
     return output
+
+
+def _write_resources(z, resources: dict[str, bytes], shim_dir: Path, package: str) -> None:
+    for name, blob in resources.items():
+        z.writestr(f"resources/{name}", blob)
+    for src in sorted(shim_dir.glob("*.py")):
+        z.write(src, f"resources/{package}/{src.name}")
+    z.writestr("documentation/index.html",
+               "<html><body><pre>\n" + HOST_REQUIREMENTS.replace("&", "&amp;").replace("<", "&lt;")
+               + "\n</pre></body></html>\n")
+
+
+def parameter_references(table: list[Var], fmi: int) -> list[int]:
+    """Value references of the parameters of ``table`` in an FMU of version ``fmi``
+    (FMI 2: one per scalar, from 0; FMI 3: one per variable, from 1 after ``time``)."""
+    out, vr = [], 0 if fmi == 2 else 1
+    for var in table:
+        n = len(scalar_names(var)) if fmi == 2 else 1
+        if var.causality == "parameter":
+            out.extend(range(vr, vr + n))
+        vr += n
+    return out

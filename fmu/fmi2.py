@@ -62,6 +62,9 @@ class _Slave(SlaveValues, Fmi2Slave):
         raise FmuError(message)
 
     # -- life cycle ------------------------------------------------------------------------
+    def setup_experiment(self, start_time, *_):  # stop time and tolerance: unused
+        self.rt.start_time = float(start_time)  # refused at exitInitializationMode unless 0
+
     def exit_initialization_mode(self):
         if self._failed:
             return

@@ -40,6 +40,9 @@ class _Slave(SlaveValues, Fmi3Slave):
         _mark_failed(self)
         raise FmuError(message)
 
+    def setup_experiment(self, start_time, *_):
+        self.rt.start_time = float(start_time)  # refused at exitInitializationMode unless 0
+
     def exit_initialization_mode(self):
         if self._failed:
             return

@@ -314,6 +314,18 @@ class _RuntimeBase:
         self.store.write("navsim.config_hash", scenario.config_hash())
         self.store.write("navsim.scenario", scenario.name)
 
+    def check_initialisation(self) -> None:
+        """The checks of ``exitInitializationMode`` common to both FMUs (FmuError: refused).
+
+        The C guard (:mod:`navsim.fmu.guard`) refuses these cases before Python sees
+        them, with an error status; an FMU built without it gets them here (a Fatal
+        status, pythonfmu's answer to any exception)."""
+        if self.initialised:
+            raise FmuError("exitInitializationMode called again: the episode is running; call reset to start again")
+        if getattr(self, "start_time", 0.0) != 0.0:
+            raise FmuError(f"start time {self.start_time!r} s refused: a navsim episode starts at t = 0 (the FMU's "
+                           "time counts ticks from the episode start)")
+
     def params(self) -> dict:
         return {v.name: self.store.read(v.name) for v in self.store.table if v.causality in ("parameter", "input")}
 
@@ -343,6 +355,7 @@ class PlantRuntime(_RuntimeBase):
     def exit_initialization_mode(self) -> None:
         from navsim.simulator import Simulator
 
+        self.check_initialisation()
         params = self.params()
         try:
             seed = int(params["seed"])
@@ -520,6 +533,7 @@ class EstimatorRuntime(_RuntimeBase):
         from navsim import estimators
         from navsim.episode import make_context
 
+        self.check_initialisation()
         params = self.params()
         try:
             options = tomllib.loads(params["estimator.options"]) if params["estimator.options"].strip() else {}

@@ -8,6 +8,7 @@ with this checkout's editable install (the FMU processes the .pth files of PYTHO
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -74,3 +75,20 @@ def test_c_host_runs_the_plant_and_exits_cleanly(host, host_env, plant2, scenari
     chunk = sim.advance(50)
     np.testing.assert_array_equal(rows[:, 1], chunk.truth.s)  # the values the core computes, bit for bit
     np.testing.assert_allclose(rows[:, 0], chunk.t, rtol=0, atol=1e-15)  # the host's k*h in double
+
+
+def test_c_host_misuse_gives_error_statuses(host, host_env, plant2, tmp_path):
+    """The same host makes the calls FMI forbids (navsim.fmu.guard): a parameter after
+    initialisation, a second exitInitializationMode, doStep after terminate (each
+    fmi2Error with a log line) and freeInstance twice (refused): exit code 0."""
+    with zipfile.ZipFile(plant2) as z:
+        if not json.loads(z.read("resources/navsim_fmu.json")).get("guard"):
+            pytest.skip("the FMU was built without the C guard (no gcc or no FMI headers)")
+    out = run_host(host, host_env, plant2, tmp_path / "plant", 3, "misuse")
+    assert out.returncode == 0, f"exit code {out.returncode}: {out.stderr[-3000:]}"
+    assert "misuse set-parameter 3 exit-init-again 3 terminate 0 step-after-terminate 3" in out.stdout
+    assert "freed twice" in out.stdout
+    for text in ("is a parameter; parameters cannot be set after initialisation",
+                 "fmi2ExitInitializationMode refused in state 'step mode'",
+                 "fmi2DoStep refused in state 'terminated'", "fmi2FreeInstance called after freeInstance; refused"):
+        assert text in out.stderr, text
