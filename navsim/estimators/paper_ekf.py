@@ -171,19 +171,25 @@ Numerical choices
 * The Jacobians of F and H_a are analytic in the angles and V_Y and use the complex-step
   derivative in phi (exact to rounding, no subtraction error; the track polynomials and
   radii are complex-safe); the tests compare them with central finite differences.
-* Speed (the filter is a sequential recursion: the coefficients of each covariance
-  interval depend on the state, whose gain depends on the covariance, so nothing can be
-  batched over steps without changing the filter). The hot path computes the stage
-  values, the Jacobians, Q, S and sigma^2 in one scalar pass (:meth:`PaperEkf._make_fused`;
-  on the sphere the phi-derivatives are written out by the chain rule instead of a second,
-  complex-step pass; :meth:`PaperEkf._coefficients` is kept as the reference the tests
-  compare it with), and integrates the Riccati equation as ``R' = [R; I]^T H [R; I]``
-  with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h / sigma``, ``Abar = A - S h^T /
-  sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small matrix products per RK4 stage
-  into preallocated arrays. Same numbers as the direct form to rounding (measured over
-  200-s runs of both modes: estimates within 1e-10 of their scale, covariances within
-  2e-10 relative). Per 1000-s paper episode at the default (0.01 s) covariance step: about
-  half the CPU time of the direct form (figures in the project README).
+* Engines (option ``engine``). The filter is a sequential recursion - the coefficients of
+  each covariance interval depend on the state, whose gain depends on the covariance - so
+  nothing can be batched over steps without changing the filter; what a step costs is its
+  arithmetic plus the interpreter's overhead. The reference engine (``"python"``)
+  computes the stage values, the Jacobians, Q, S and sigma^2 in one scalar pass
+  (:meth:`PaperEkf._make_fused`; on the sphere the phi-derivatives are written out by the
+  chain rule instead of a second, complex-step pass; :meth:`PaperEkf._coefficients` is
+  kept as the reference the tests compare it with), and integrates the Riccati equation as
+  ``R' = [R; I]^T H [R; I]`` with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h /
+  sigma``, ``Abar = A - S h^T / sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small
+  matrix products per RK4 stage; same numbers as the direct form to rounding. The
+  compiled engine (``"compiled"``, :mod:`navsim.estimators.paper_ekf_kernel`, numba,
+  optional extra ``fast``; ``"auto"`` picks it when numba is installed) runs the same
+  expressions in the same order for the steps between GNSS epochs, with the matrix
+  products as loops, and hands the start-up sub-steps, failures and epoch updates (16)
+  back to the reference code; it also computes the outputs, and the step-wise
+  :meth:`PaperEkf.step` does a step without an epoch in one compiled call. The two engines
+  agree to rounding (the tolerance and its reason: ``tests/estimators/
+  test_paper_ekf_engine.py``; figures: ``benchmarks/RESULTS.md``).
 * The prior (9 x 9 over ENU position, velocity, attitude) is projected on the state by
   weighted least squares along the track (phi and V_Y) and by the attitude Jacobian.
 * Output: lat = phi, lon = lambda(phi), h = h(phi), velocity_n = [k V_Y, V_Y, m V_Y],
