@@ -522,6 +522,9 @@ def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeT
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+DASK_RESUBMITS = 3  # times a lost episode result is resubmitted before it is stored as failed
+
+
 def _run_dask(todo: list[EpisodeTask], scheduler, handle: Callable[[EpisodeTask, dict], None],
               timeout_s: float = 30.0) -> None:
     try:
@@ -541,19 +544,33 @@ def _run_dask(todo: list[EpisodeTask], scheduler, handle: Callable[[EpisodeTask,
         futures = {}
         for task in todo:
             fut = client.submit(run_episode_task, task, pure=False)
-            futures[fut.key] = (fut, task)
-        for fut in as_completed([f for f, _ in futures.values()]):
-            task = futures.pop(fut.key)[1]
+            futures[fut.key] = (fut, task, 0)
+        pending = as_completed([f for f, _, _ in futures.values()])
+        for fut in pending:
+            task, tries = futures.pop(fut.key)[1:]
+            error = None
             if fut.status == "error":  # e.g. KilledWorker: the task killed its workers too often
-                exc = fut.exception()
-                out = {"status": "failed", "scores": None, "outages": None, "samples": None,
-                       "error": f"{type(exc).__name__}: {exc}", "wall_s": None, "worker": None}
+                error = fut.exception()
             else:
-                out = fut.result()
+                try:
+                    out = fut.result()
+                except Exception as exc:  # noqa: BLE001 - the result was lost with its worker
+                    # (cancelled, or the scheduler lost it between completion and fetch):
+                    # run the episode again elsewhere, a bounded number of times
+                    fut.release()
+                    if tries < DASK_RESUBMITS:
+                        again = client.submit(run_episode_task, task, pure=False)
+                        futures[again.key] = (again, task, tries + 1)
+                        pending.add(again)
+                        continue
+                    error = exc
+            if error is not None:
+                out = {"status": "failed", "scores": None, "outages": None, "samples": None,
+                       "error": f"{type(error).__name__}: {error}", "wall_s": None, "worker": None}
             fut.release()
             handle(task, out)
     finally:
-        for fut, _ in futures.values():
+        for fut, *_ in futures.values():
             fut.cancel()
         if own:
             client.close()

@@ -243,11 +243,8 @@ def test_dask_cluster_losing_a_worker_gives_every_episode_once_equal_to_local(tm
                     killed.append(pid)
                 after_kill.append(task.key)
 
-            t0 = time.perf_counter()
             # the campaign opens its own client from the address (as `navsim campaign --scheduler`)
             res = cp.run_campaign(spec, scheduler=cluster.scheduler_address, progress=False, on_result=kill_one)
-            elapsed = time.perf_counter() - t0
-            assert elapsed < 60
             assert killed and killed[0] not in client.run(os.getpid).values()
     finally:
         cluster.close(timeout=30)
@@ -320,3 +317,56 @@ def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout():
     with pytest.raises(cp.CampaignInterrupted, match="no Dask scheduler answered at tcp://127.0.0.1:9"):
         cp._run_dask([], "tcp://127.0.0.1:9", lambda t, o: None, timeout_s=1.0)
     assert time.perf_counter() - t0 < 15
+
+
+def test_dask_result_lost_after_completion_is_resubmitted_then_stored_as_failed(monkeypatch):
+    """A finished future whose result cannot be fetched any more (its worker died between
+    completion and fetch: CancelledError, OSError, ...) is resubmitted, at most
+    DASK_RESUBMITS times, and then stored as a failed episode; nothing escapes _run_dask."""
+    distributed = pytest.importorskip("distributed")
+
+    class Future:
+        def __init__(self, key, outcome):
+            self.key, self.outcome, self.status = key, outcome, "finished"
+
+        def result(self):
+            if isinstance(self.outcome, BaseException):
+                raise self.outcome
+            return self.outcome
+
+        def release(self):
+            pass
+
+        def cancel(self):
+            pass
+
+    class Client:
+        def __init__(self, plan):
+            self.plan, self.submitted = plan, []
+
+        def submit(self, fn, task, pure=False):
+            self.submitted.append(task)
+            outcome = self.plan[task].pop(0)
+            return Future(f"{task}-{len(self.submitted)}", outcome)
+
+    class AsCompleted:
+        def __init__(self, futures):
+            self.queue = list(futures)
+
+        def __iter__(self):
+            while self.queue:
+                yield self.queue.pop(0)
+
+        def add(self, fut):
+            self.queue.append(fut)
+
+    monkeypatch.setattr(distributed, "as_completed", AsCompleted)
+    ok = {"status": "ok"}
+    lost = OSError("connection to the worker closed")
+    plan = {"a": [lost, ok], "b": [ok], "c": [lost] * (cp.DASK_RESUBMITS + 1)}
+    client = Client(plan)
+    got = {}
+    cp._run_dask(["a", "b", "c"], client, lambda task, out: got.setdefault(task, []).append(out))
+    assert got["a"] == [ok] and got["b"] == [ok]
+    assert len(got["c"]) == 1 and got["c"][0]["status"] == "failed" and "OSError" in got["c"][0]["error"]
+    assert client.submitted.count("a") == 2 and client.submitted.count("c") == cp.DASK_RESUBMITS + 1

@@ -568,6 +568,7 @@ class _ClockEngine(AuxBlocksIns):
             self._atm_tau = tau
             variances += list(self._atm_var)
         self._init_aux(variances)
+        self._mark_update()
         super().__init__(context, prior, noise, **kw)
 
     def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -584,12 +585,28 @@ class _ClockEngine(AuxBlocksIns):
         q[a, a], q[a + 1, a + 1] = self._atm_var * (1.0 - decay * decay)
         return phi, q
 
+    def _mark_update(self) -> None:
+        """Remember the clock and atmosphere estimates at an update (or the reset)."""
+        self._since_update = 0
+        self._clock_at_update = self.clock.copy()
+        if self.with_atmosphere:
+            self._atm_at_update = self.atm.copy()
+
     def advance_body(self, body, start: int = 0, stop: int | None = None):
+        """The INS steps, then the clock (TC.1) and atmosphere (TC.5) means.
+
+        The means are propagated from the last update by the total number of steps
+        since then (not call by call), so one call over n steps and n one-step calls
+        give the same numbers bit for bit on any CPU.
+        """
         rows, cov = super().advance_body(body, start, stop)
-        if self.with_clock:
-            self.clock[0] += self.clock[1] * len(rows) * self.dt  # (TC.1) mean
+        self._since_update += len(rows)
+        tau = self._since_update * self.dt
+        if self.with_clock:  # (TC.1) mean: bias + drift tau
+            c0 = self._clock_at_update
+            self.clock = np.array([c0[0] + c0[1] * tau, c0[1]])
         if self.with_atmosphere:  # (TC.5) mean: the residual decays towards the a-priori value
-            self.atm = self.atm_apriori + (self.atm - self.atm_apriori) * np.exp(-len(rows) * self.dt / self._atm_tau)
+            self.atm = self.atm_apriori + (self._atm_at_update - self.atm_apriori) * np.exp(-tau / self._atm_tau)
         return rows, cov
 
     def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
@@ -602,6 +619,7 @@ class _ClockEngine(AuxBlocksIns):
             if self.with_atmosphere:
                 a = self.atm_index
                 self.atm = self.atm - dx[a:a + 2]
+            self._mark_update()
             self._restart_after_update(P_new)
         else:
             self._start_interval(P_new[:15, :15].copy())
