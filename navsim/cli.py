@@ -122,15 +122,28 @@ def _cmd_paper(args) -> int:
         module = importlib.import_module(f"navsim.paper.seed{args.seed_id}")
     except ModuleNotFoundError:
         raise NavsimError(f"seed: expected one of 000, 001, 003 with its reproduction installed, got {args.seed_id!r}") from None
-    rows = module.run(plot_dir=args.plot_dir, quick=args.quick)
+    kwargs = {"plot_dir": args.plot_dir, "quick": args.quick}
+    if args.seeds is not None:
+        import inspect
+
+        if "seeds" not in inspect.signature(module.run).parameters:
+            raise NavsimError(f"--seeds: seed {args.seed_id}'s reproduction has fixed runs; only 003 takes --seeds")
+        from .report import parse_seeds
+
+        kwargs["seeds"] = parse_seeds(args.seeds)
+    rows = module.run(**kwargs)
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
     header = ("ref", "quantity", "paper", "navsim", "unit")
-    table = [[row["ref"], row["quantity"], _fmt(row["paper"]), _fmt(row["navsim"]), row["unit"]] for row in rows]
+    table = [[row["ref"], row["quantity"], _fmt(row["paper"]), _fmt(row["navsim"]), row["unit"]]
+             for row in rows if "text" not in row]
     widths = [max(len(str(r[i])) for r in [header, *table]) + 2 for i in range(5)]
     for cells in [header, *table]:
         print("".join(str(c).ljust(w) for c, w in zip(cells, widths)).rstrip())
+    for row in rows:  # the experiment table and the verdicts (seed 003)
+        if "text" in row:
+            print(f"\n{row['ref']}, {row['quantity']}:\n{row['text']}")
     if args.plot_dir:
         print(f"plots in {args.plot_dir}", file=sys.stderr)
     return 0
@@ -188,6 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print rows as JSON")
     p.add_argument("--plot-dir", default=None, help="write one PNG per experiment here")
     p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
+    p.add_argument("--seeds", default=None, help="seeds A:B of the experiment table (003 only; default 0:10)")
     p.set_defaults(func=_cmd_paper)
     return parser
 

@@ -154,7 +154,7 @@ def _errors(res, yt):
     return e
 
 
-def run_example(seeds=(0, 1, 2), variants=None, duration_s: float | None = None):
+def run_example(seeds=(0, 1, 2), variants=None, duration_s: float | None = None, quick: bool = False):
     """Run the example for several seeds and filter variants.
 
     Returns a dict: ``t``, ``truth`` (per seed, (n, 5)), ``runs[name]`` = list over seeds
@@ -169,6 +169,8 @@ def run_example(seeds=(0, 1, 2), variants=None, duration_s: float | None = None)
     sc = load_scenario("paper-2012")
     if duration_s is not None:
         sc = sc.with_overrides({"timing": {"duration_s": duration_s}})
+    if quick:
+        sc = sc.with_overrides({"outages": {"windows_s": [[20.0, 40.0]]}})
     sim = Simulator(sc)
     prn = np.asarray(sim.constellation.prn)
     out = {"runs": {name: [] for name in variants}, "truth": [], "gen_cpu": []}
@@ -286,94 +288,79 @@ def _identity_rows() -> list[dict]:
     return rows
 
 
-def run(plot_dir: str | None = None, quick: bool = False) -> list[dict]:
-    """Reproduce the example of seed 003; see the module docstring."""
-    rows: list[dict] = []
-    seeds = (0,) if quick else (0, 1, 2)
-    cov = {"cov_step_s": _QUICK_COV_STEP} if quick else {}
-    printed = {
-        "printed centrifugal sign": dict(cov, as_printed="centrifugal"),
-        "printed Phi(beta, gamma)": dict(cov, as_printed="kinematics"),
-        "as printed (both)": dict(cov, as_printed=True),
-    }
-    ex = run_example(seeds, {"corrected": dict(cov)})
-    ex_printed = run_example((0,), printed)
+def _example_rows(agg) -> list[dict]:
+    """The paper's printed end-of-run figures against paper-ekf on paper-2012 (max over seeds)."""
+    from .seed003_experiments import INSTANTS
+
+    err = agg["constant"]["paper-ekf"]["err"]
+    n = len(err["latitude"])
+    j = INSTANTS.index("end of run")
+    t_end = agg["_t"]["constant"][j]
+    ang = np.max(np.stack([err[m][:, j] for m in ("alpha %", "beta %", "gamma %")]))
+    label = f"paper-ekf, max over {n} seeds"
+    return [
+        {"ref": "003 Example", "quantity": f"V_Y error at {t_end:.0f} s, % of V_Y, {label}", "paper": 4.0,
+         "navsim": float(np.max(err["V_Y %"][:, j])), "unit": "%"},
+        {"ref": "003 Example", "quantity": f"attitude angle error at {t_end:.0f} s, max over alpha/beta/gamma, % of "
+         f"the angle, {label}", "paper": 0.1, "navsim": float(ang), "unit": "%"},
+        {"ref": "003 Example", "quantity": f"latitude error at {t_end:.0f} s, (r+h) dphi, {label}", "paper": 14.0,
+         "navsim": float(np.max(np.abs(err["latitude"][:, j]))), "unit": "m"},
+    ]
+
+
+def _printed_rows(ex) -> list[dict]:
+    """The printed formulas (seed 0) against the corrected ones, at the end of the outage and run."""
+    rows = []
     t, r = ex["t"], ex["r"]
-    i_end = len(t) - 1
-    # the last step before the first GNSS update after the outage (t = 699.99 s with the
-    # default 0.01-s step and 1-s epochs: the update at 700.00 s is not counted)
-    _, i_out = outage_instants(t, ex["epoch_t"], 400.0)
-    t_out = float(t[i_out])
-    for source, names in ((ex, ["corrected"]), (ex_printed, list(printed))):
-        for name in names:
-            runs = source["runs"][name]
-            label_seeds = f"max over {len(runs)} seed(s)"
-            vy, ang, ang_abs, lat = _summary(runs, source["truth"], r, i_end)
-            paper = name == "corrected"
+    _, i_out = outage_instants(t, ex["epoch_t"], 400.0 if t[-1] > 700 else 20.0)
+    for name, runs in ex["runs"].items():
+        for idx, when in ((len(t) - 1, f"{t[-1]:.0f} s"), (i_out, f"{t[i_out]:.2f} s (end of outage)")):
+            vy, ang, ang_abs, lat = _summary(runs, ex["truth"], r, idx)
             rows += [
-                {"ref": "003 Example", "quantity": f"V_Y error at 1000 s, % of V_Y, {name}, {label_seeds}",
-                 "paper": 4.0 if paper else None, "navsim": vy, "unit": "%"},
-                {"ref": "003 Example", "quantity": f"attitude angle error at 1000 s, max over alpha/beta/gamma, "
-                 f"% of the angle, {name}, {label_seeds}", "paper": 0.1 if paper else None, "navsim": ang,
-                 "unit": "%"},
-                {"ref": "003 Example", "quantity": f"attitude angle error at 1000 s, max |d angle|, {name}",
+                {"ref": "003 printed formulas", "quantity": f"V_Y error at {when}, % of V_Y, {name}, seed 0",
+                 "paper": None, "navsim": vy, "unit": "%"},
+                {"ref": "003 printed formulas", "quantity": f"max |angle error| at {when}, {name}, seed 0",
                  "paper": None, "navsim": ang_abs * 1e3, "unit": "mrad"},
-                {"ref": "003 Example", "quantity": f"latitude error at 1000 s, (r+h) dphi, {name}, {label_seeds}",
-                 "paper": 14.0 if paper else None, "navsim": lat, "unit": "m"},
+                {"ref": "003 printed formulas", "quantity": f"|latitude error| at {when}, {name}, seed 0",
+                 "paper": None, "navsim": lat, "unit": "m"},
             ]
-            vy7, _, ang7, lat7 = _summary(runs, source["truth"], r, i_out)
-            rows += [
-                {"ref": "003 end of outage",
-                 "quantity": f"V_Y error at {t_out:.2f} s (before the first update after the outage), % of V_Y, "
-                 f"{name}", "paper": None, "navsim": vy7, "unit": "%"},
-                {"ref": "003 end of outage",
-                 "quantity": f"latitude error at {t_out:.2f} s (before the first update after the outage), {name}",
-                 "paper": None, "navsim": lat7, "unit": "m"},
-            ]
-            if any(res["diverged"] for res in runs):
-                rows.append({"ref": "003 Example", "quantity": f"diverged (flag), {name}", "paper": None,
-                             "navsim": 1.0, "unit": "-"})
-    # consistency of the corrected filter
-    runs = ex["runs"]["corrected"]
-    nees = []
-    for res in runs:
-        e, p = res["e"], res["p"]
-        nees.append(np.einsum("ni,ni->n", e, np.linalg.solve(p, e[..., None])[..., 0]))
-    mean_nees = np.mean(nees, axis=0)
-    nis = sum(float(np.nansum(res["nis"])) for res in runs)
-    dof = sum(int(res["dof"].sum()) for res in runs)
-    rows += [
-        {"ref": "003 (14),(16)", "quantity": f"5-state NEES, mean over time and {len(seeds)} seed(s) (expect 5)",
-         "paper": None, "navsim": float(mean_nees.mean()), "unit": "-"},
-        {"ref": "003 (16)", "quantity": "NIS per degree of freedom at GNSS epochs (expect 1)", "paper": None,
-         "navsim": nis / max(dof, 1), "unit": "-"},
-    ]
-    # speed
-    steps = len(t)
-    cpu = np.mean([res["cpu"] for res in runs])
-    cov_label = f"covariance step {cov.get('cov_step_s', 0.01)} s"
-    rows += [
-        {"ref": "speed", "quantity": f"filter CPU per 1000-s episode (100 000 steps), {cov_label}",
-         "paper": None, "navsim": float(cpu), "unit": "s"},
-        {"ref": "speed", "quantity": f"filter CPU per step, {cov_label}", "paper": None,
-         "navsim": float(cpu / steps * 1e6), "unit": "us"},
-        {"ref": "speed", "quantity": "simulation (truth + sensors) CPU per episode", "paper": None,
-         "navsim": float(np.mean(ex["gen_cpu"])), "unit": "s"},
-    ]
-    if not quick:  # the cheaper covariance step for comparison
-        fast = run_example((0,), {"fast": {"cov_step_s": _QUICK_COV_STEP}})
-        res = fast["runs"]["fast"][0]
-        vy, ang, _, lat = _summary([res], fast["truth"], r, len(fast["t"]) - 1)
-        rows += [
-            {"ref": "speed", "quantity": f"filter CPU per episode, covariance step {_QUICK_COV_STEP} s",
-             "paper": None, "navsim": float(res["cpu"]), "unit": "s"},
-            {"ref": "003 Example", "quantity": f"latitude error at 1000 s, covariance step {_QUICK_COV_STEP} s, seed 0",
-             "paper": None, "navsim": lat, "unit": "m"},
-        ]
+        if any(res["diverged"] for res in runs):
+            rows.append({"ref": "003 printed formulas", "quantity": f"diverged (flag), {name}", "paper": None,
+                         "navsim": 1.0, "unit": "-"})
+    return rows
+
+
+def run(plot_dir: str | None = None, quick: bool = False, seeds=None, processes: int | None = None) -> list[dict]:
+    """Seed 003's experiments: the experiment table of the three claims
+    (:mod:`navsim.paper.seed003_experiments`; default seeds 0-9, ``quick``: 2 seeds of a
+    60-s run), the printed figures, the printed formulas (seed 0), the deterministic
+    checks and the Jacobian / identity checks. Rows with a ``text`` key carry the
+    experiment table (Markdown) and the verdicts on the three claims."""
+    from . import seed003_experiments as sx
+
+    if seeds is None:
+        seeds = range(2) if quick else range(10)
+    seeds = list(seeds)
+    cov = _QUICK_COV_STEP
+    agg = sx.experiment(seeds, cov, processes, quick)
+    rows = sx.experiment_rows(agg, cov)
+    if not quick:
+        rows += _example_rows(agg)
+    printed = {"corrected": {"cov_step_s": cov}, "printed centrifugal sign": {"cov_step_s": cov, "as_printed": "centrifugal"},
+               "printed Phi(beta, gamma)": {"cov_step_s": cov, "as_printed": "kinematics"}}
+    if quick:
+        printed = {"corrected": {"cov_step_s": cov}, "printed centrifugal sign": printed["printed centrifugal sign"]}
+    ex = run_example((0,), printed, duration_s=60.0 if quick else None, quick=quick)
+    rows += _printed_rows(ex)
+    rows += sx.deterministic_checks(20.0 if quick else 100.0)
     rows += _jacobian_rows()
     rows += _identity_rows()
+    rows.append({"ref": "003 experiment table", "quantity": "mean |error| over seeds [95 % interval] and max",
+                 "paper": None, "navsim": None, "unit": "-", "text": sx.table_markdown(agg)})
+    for i, sentence in enumerate(sx.verdicts(agg, cov), 1):
+        rows.append({"ref": "003 verdict", "quantity": f"claim {i}", "paper": None, "navsim": None, "unit": "-",
+                     "text": sentence})
     if plot_dir is not None:
-        ex["runs"].update(ex_printed["runs"])
         _plots(plot_dir, ex)
     return rows
 
@@ -390,6 +377,9 @@ def _plots(plot_dir: str, ex) -> None:
               ("V_Y", 1.0, "m/s")]
     for fname, names in (("003_errors.png", ["corrected"]),
                          ("003_printed.png", ["printed centrifugal sign", "printed Phi(beta, gamma)"])):
+        names = [n for n in names if n in ex["runs"]]
+        if not names:
+            continue
         fig, axes = plt.subplots(5, 1, figsize=(9, 11), sharex=True)
         for name in names:
             res = ex["runs"][name][0]

@@ -168,3 +168,78 @@ def test_bundled_variants_as_documented():
         el = np.degrees(np.arcsin(np.sum(d * up, 1) / np.linalg.norm(d, axis=1)))
         assert np.all((el > 50.0) & (el < 61.0))
         assert np.all(np.sum(d * north, 1) < 0)  # to the south: along the northbound track
+
+
+# ---------------------------------------------------------------------------- which printed matrix is wrong
+def test_one_misprint_in_appendix_1_explains_both_printed_phi_and_b():
+    """If Appendix 1's D has alpha and beta interchanged (D'(a, b, g) = D(b, a, g), i.e.
+    the first-listed angle is the first rotation), then (a) the printed kinematic matrix
+    Phi(beta, gamma) of (1)/(7)/Appendix 2 is exactly the kinematic matrix of D', and (b)
+    the printed definition B = D'(lambda + Omega t, -phi, 0) is exactly the ENU frame
+    D(-phi, lambda + Omega t, 0) navsim uses. One misprint (printed once) against two."""
+    from navsim.rotations import euler_krylov_matrix
+
+    def d_swapped(a, b, g):
+        return euler_krylov_matrix(b, a, g)
+
+    rng = np.random.default_rng(12)
+    for _ in range(5):
+        lam_t, phi = rng.uniform(-3, 3), rng.uniform(-1.4, 1.4)
+        assert np.array_equal(d_swapped(lam_t, -phi, 0.0), euler_krylov_matrix(-phi, lam_t, 0.0))
+        a, b, g = rng.uniform(-1.2, 1.2, 3)
+        w = rng.normal(size=3)
+        sg, cg, cb, tb = np.sin(g), np.cos(g), np.cos(b), np.tan(b)
+        phi_printed = np.array([[sg / cb, cg / cb, 0.0], [cg, -sg, 0.0], [sg * tb, cg * tb, 1.0]])
+        rates = phi_printed @ w
+        h = 1e-6  # central difference of D' along the printed rates: dD'/dt = -[w x] D'
+        ddt = (d_swapped(*(np.array([a, b, g]) + h * rates)) - d_swapped(*(np.array([a, b, g]) - h * rates))) / (2 * h)
+        wx = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+        np.testing.assert_allclose(ddt, -wx @ d_swapped(a, b, g), atol=1e-8)
+        # ... while with D as printed the same rates do not integrate it
+        ddt_d = (euler_krylov_matrix(*(np.array([a, b, g]) + h * rates))
+                 - euler_krylov_matrix(*(np.array([a, b, g]) - h * rates))) / (2 * h)
+        assert np.abs(ddt_d + wx @ euler_krylov_matrix(a, b, g)).max() > 1e-3
+
+
+# ---------------------------------------------------------------------------- navsim paper 003
+def _check_rows(rows, refs):
+    exp = [r for r in rows if "values" in r]
+    assert {r["ref"] for r in exp} >= refs
+    for r in exp:
+        vals = np.asarray(r["values"])
+        assert r["n_seeds"] == len(vals) >= 2 and np.all(np.isfinite(vals))
+        assert r["navsim"] == pytest.approx(np.mean(np.abs(vals)))  # computed from the per-seed values
+        assert r["ci95"][0] <= r["navsim"] <= r["ci95"][1] and r["max_abs"] == pytest.approx(np.max(np.abs(vals)))
+    # not constants: the seeds differ, the filters differ
+    lat = {r["quantity"]: r["values"] for r in exp if r["quantity"].startswith("|latitude")}
+    assert all(v[0] != v[1] for v in lat.values())
+    assert len({tuple(v) for v in lat.values()}) == len(lat)
+
+
+def test_experiment_table_one_scenario_short():
+    """The experiment machinery on the one-satellite variant, 2 seeds x 60 s (quick)."""
+    from navsim.paper import seed003_experiments as sx
+
+    agg = sx.experiment(seeds=[0, 1], quick=True, processes=1, scenarios=["one satellite"])
+    rows = sx.experiment_rows(agg, 0.1)
+    _check_rows(rows, {"003 one satellite"})
+    speed = [r for r in rows if r["ref"] == "003 speed"]
+    assert len(speed) == 3 and all(r["navsim"] > 0 for r in speed)
+    text = sx.verdicts(agg, 0.1)
+    assert len(text) == 3 and all("one satellite" in t for t in text)
+
+
+@pytest.mark.slow
+def test_navsim_paper_003_quick_smoke(capsys):
+    """`navsim paper 003 --quick --json`: every experiment row exists with finite, computed values."""
+    import json
+
+    from navsim.cli import main
+
+    assert main(["paper", "003", "--quick", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    _check_rows(rows, {"003 observer ablation", "003 full-state filter", "003 one satellite", "003 accelerating",
+                       "003 end of outage"})
+    det = [r for r in rows if r["ref"] == "003 deterministic check"]
+    assert len(det) == 6 and all(abs(r["navsim"]) < 1e-6 for r in det)
+    assert sum(r["ref"] == "003 verdict" for r in rows) == 3
