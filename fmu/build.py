@@ -293,9 +293,27 @@ def default_estimator(estimator: str | None) -> str:
 
     if estimator is None:
         estimator = "paper-ekf" if "paper-ekf" in estimators.available() else "lc-ekf"
-    if estimator not in estimators.available():
-        raise ConfigError("--estimator", f"an installed estimator {estimators.available()}", estimator)
+    try:
+        estimators.check(estimator)
+    except ConfigError as exc:
+        raise ConfigError("--estimator", exc.expected, estimator) from None
     return estimator
+
+
+USER_ESTIMATOR_DIR = "user_estimator"
+
+
+def _embed_estimator(estimator: str, resources: dict[str, bytes]) -> str:
+    """A user's estimator given as ``file.py:Factory`` is copied into resources/ (the FMU then
+    needs no copy of the file on the host); the name recorded is ``user_estimator/file.py:Factory``,
+    resolved against the FMU's resources folder. Registry names and dotted import paths are kept:
+    a dotted module must be importable by the host's Python."""
+    module, _, attr = estimator.rpartition(":")
+    if not module.endswith(".py"):
+        return estimator
+    path = Path(module).expanduser()
+    resources[f"{USER_ESTIMATOR_DIR}/{path.name}"] = path.read_bytes()
+    return f"{USER_ESTIMATOR_DIR}/{path.name}:{attr}"
 
 
 def variable_tables(scenario, estimator: str | None = None, estimator_options: str = "") -> tuple[list[Var], list[Var]]:
@@ -319,8 +337,9 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     what : ``"plant"`` or ``"estimator"``.
     fmi : 2 (pythonfmu) or 3 (pythonfmu3).
     output : the ``.fmu`` file (default ``<scenario>-<what>-fmi<fmi>.fmu``).
-    estimator : registered estimator name for the estimator FMU (default ``paper-ekf``
-        when installed, else ``lc-ekf``); the FMU parameter ``estimator.name``.
+    estimator : estimator name or import path (``package.module:Factory``; a
+        ``file.py:Factory`` is copied into the FMU) for the estimator FMU (default
+        ``paper-ekf`` when installed, else ``lc-ekf``); the FMU parameter ``estimator.name``.
     estimator_options : TOML ``key = value`` lines passed to ``navsim.estimators.make``.
     guarded : put the C guard of :mod:`navsim.fmu.guard` (FMI state machine, misuse
         answered with error statuses) in front of the Linux shim when gcc and fmpy's FMI
@@ -343,6 +362,7 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
         scenario = load_scenario(scenario)
     sim = Simulator(scenario)
     dims = Dimensions.of(sim)
+    resources: dict[str, bytes] = {}
     meta = {"kind": what, "fmi": fmi, "build_version": navsim.__version__, "scenario": scenario.name,
             "config_hash": scenario.config_hash()}
     if what == "plant":
@@ -350,7 +370,7 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
         text = (f"navsim plant: truth and sensor data (IMU increments and multiple integrals, GNSS pseudorange, "
                 f"Doppler, satellite states) of scenario {scenario.name!r}")
     else:
-        estimator = default_estimator(estimator)
+        estimator = _embed_estimator(default_estimator(estimator), resources)
         meta.update(estimator=estimator, estimator_options=estimator_options)
         table = estimator_variables(dims, {"estimator.name": estimator, "estimator.options": estimator_options})
         text = (f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its "
@@ -363,7 +383,6 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     xml = model_description_xml(what, table, fmi, model_name=identifier, description=text,
                                 version=navsim.__version__, duration_s=scenario.timing.duration_s,
                                 step_s=scenario.timing.nav_period_s)
-    resources: dict[str, bytes] = {}
     resources[SCENARIO_FILE] = _embed_scenario(scenario, resources).encode()
     resources[META_FILE] = json.dumps(meta, indent=1).encode()
     resources["slavemodule.txt"] = module.encode()

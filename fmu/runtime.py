@@ -541,7 +541,10 @@ class EstimatorRuntime(_RuntimeBase):
             raise FmuError(f"bad parameter value: estimator.options: expected TOML key = value pairs, got "
                            f"{params['estimator.options']!r} ({exc})") from None
         try:
-            self.estimator = estimators.make(params["estimator.name"], **options)
+            name = params["estimator.name"]
+            if name.startswith("user_estimator/"):  # a user's file embedded by navsim fmu build
+                name = str(Path(self.resources) / name)
+            self.estimator = estimators.make(name, **options)
         except NavsimError as exc:
             raise FmuError(f"bad parameter value: {exc}") from None
         self.context = make_context(self.sim)

@@ -217,6 +217,7 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
     :class:`~navsim.errors.ConfigError` naming the field (e.g. ``scenarios[1].overrides``).
     """
     from .estimators import available, make
+    from .estimators import check as check_estimator
     from .scenario import load_scenario
 
     base = Path(base_dir)
@@ -276,8 +277,17 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
             raise ConfigError(where, "a table with name, label, options", entry, source=source)
         _check_keys(entry, ("name", "label", "options"), where, source)
         name = entry.get("name")
-        if name not in have:
-            raise ConfigError(f"{where}.name", f"one of {', '.join(have)}", name, source=source)
+        if not isinstance(name, str):
+            raise ConfigError(f"{where}.name", f"one of {', '.join(have)} or an import path package.module:Factory",
+                              name, source=source)
+        module_part = name.rsplit(":", 1)[0]
+        if module_part.endswith(".py") and not Path(module_part).expanduser().is_absolute():
+            # a user's estimator file, relative to the spec like its scenario paths
+            name = str((base / module_part).resolve()) + ":" + name.rsplit(":", 1)[1]
+        try:
+            check_estimator(name)
+        except ConfigError as exc:
+            raise ConfigError(f"{where}.name", exc.expected, name, source=source) from None
         options = entry.get("options", {})
         if not isinstance(options, dict):
             raise ConfigError(f"{where}.options", "a table of keyword options", options, source=source)

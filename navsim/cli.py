@@ -4,6 +4,7 @@ Sub-commands
 ------------
 ``navsim --version``                         print the installed version
 ``navsim scenarios``                         list the bundled scenarios
+``navsim estimators [NAME ...] [--json]``    list the estimators, their options and availability
 ``navsim show SCENARIO``                     print the resolved scenario as TOML
 ``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
 ``navsim run SCENARIO --estimator NAME``     score one estimator on one episode
@@ -65,6 +66,28 @@ def _cmd_scenarios(args) -> int:
 
     for name in list_scenarios():
         print(f"{name:24s} {load_scenario(name).description}")
+    return 0
+
+
+def _cmd_estimators(args) -> int:
+    from .estimators import describe
+
+    infos = describe(args.names or None)
+    if args.json:
+        print(json.dumps([{"name": i.name, "target": i.target, "available": i.available, "missing": i.missing,
+                           "options": {k: (v if isinstance(v, (int, float, str, bool)) or v is None else repr(v))
+                                       for k, v in i.options.items()},
+                           "summary": i.summary} for i in infos], indent=1))
+        return 0
+    for i in infos:
+        state = "" if i.available else f"  [unavailable: {i.missing}]"
+        print(f"{i.name:16s} {i.target}{state}")
+        if i.summary:
+            print(f"{'':16s} {i.summary}")
+        if i.options:
+            print(f"{'':16s} options: " + ", ".join(f"{k}={v!r}" for k, v in i.options.items()))
+    print("\nAny other estimator: give its import path package.module:Factory (or file.py:Factory) "
+          "wherever a name is taken.")
     return 0
 
 
@@ -165,6 +188,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     sub.add_parser("scenarios", help="list the bundled scenarios").set_defaults(func=_cmd_scenarios)
+
+    p = sub.add_parser("estimators", help="list the estimators, their options and availability")
+    p.add_argument("names", nargs="*", help="only these names or import paths")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.set_defaults(func=_cmd_estimators)
 
     p = sub.add_parser("show", help="print the resolved scenario as TOML")
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")

@@ -150,15 +150,18 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def _check_estimators(names: Sequence[str]) -> list[str]:
-    from .estimators import available
+    from .estimators import available, check
 
     names = [n.strip() for n in names if n.strip()]
-    have = available()
-    missing = [n for n in names if n not in have]
-    if not names or missing:
-        raise ConfigError("--estimators" if len(names) != 1 else "--estimator",
-                          f"estimator names among the available ones: {', '.join(have) or '(none installed)'}",
-                          ",".join(missing) or ",".join(names))
+    field = "--estimators" if len(names) != 1 else "--estimator"
+    if not names:
+        raise ConfigError(field, f"estimator names among {', '.join(available()) or '(none installed)'} "
+                          "or import paths package.module:Factory", "")
+    for n in names:
+        try:
+            check(n)
+        except ConfigError as exc:
+            raise ConfigError(field, exc.expected, n) from None
     if len(set(names)) != len(names):
         raise ConfigError("--estimators", "distinct names", ",".join(names))
     return names
@@ -546,7 +549,7 @@ def add_run_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``navsim run`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("run", help="run one estimator on one episode and score it")
     _common(p)
-    p.add_argument("--estimator", required=True, help="registered estimator name (see navsim.estimators.available())")
+    p.add_argument("--estimator", required=True, help="estimator name (navsim estimators) or import path package.module:Factory")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="estimator option (TOML value), repeatable")
@@ -559,7 +562,7 @@ def add_bench_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``navsim bench`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("bench", help="every estimator on every seed, compared")
     _common(p)
-    p.add_argument("--estimators", required=True, metavar="A,B,C", help="comma-separated estimator names")
+    p.add_argument("--estimators", required=True, metavar="A,B,C", help="comma-separated estimator names or import paths package.module:Factory")
     p.add_argument("--seeds", default="0:10", metavar="A:B",
                    help="seeds A..B-1 (default 0:10), or A:B:STEP, or a comma list")
     p.add_argument("--option", action="append", default=[], metavar="[EST.]KEY=VALUE",
