@@ -60,8 +60,14 @@ Printed formulas that are wrong (evidence in ``tests/estimators/test_paper_ekf.p
   in both modes. (1)'s Coriolis term (printed ``+ omega x V`` with 2 Omega on the north
   but not on the vertical Earth-rate component) is not needed: (7) and (12), which the
   filter uses, agree with ``-(2 omega_ie + omega_en) x V``.
-* B: one place prints ``B = D(lambda + Omega t, -phi, 0)``; only ``D(-phi, lambda +
-  Omega t, 0)`` is the ENU frame (module notes of :mod:`navsim.rotations`); used throughout.
+* B: one place prints ``B = D(lambda + Omega t, -phi, 0)``; with D as printed only ``D(-phi,
+  lambda + Omega t, 0)`` is the ENU frame (module notes of :mod:`navsim.rotations`); used
+  throughout. Weighed together with Phi (:mod:`navsim.paper.seed003`, "Which printed matrix
+  is wrong"): one misprint in Appendix 1 - alpha and beta interchanged in the printed D -
+  makes both the printed Phi(beta, gamma) and the printed B exactly right, so the misprint
+  most economically sits in D (printed once), not in Phi (printed three times) and B;
+  navsim's choice (D as printed, Phi(alpha, gamma), B = D(-phi, lambda + Omega t, 0)) is
+  the same filter with alpha and beta renamed.
 * (16) weighs Z_ax with the intensity D_a as if it were a variance; a step-mean
   accelerometer sample has variance ``H_w D_a H_w^T / dt``, used here.
 

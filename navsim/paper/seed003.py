@@ -1,9 +1,13 @@
 """Reproduction of the worked example of seed 003 (Sokolov & Vdovichenko 2012).
 
-``run(plot_dir=None, quick=False)`` returns rows ``{"ref", "quantity", "paper", "navsim",
-"unit"}`` and, with ``plot_dir``, writes ``003_errors.png`` (state errors of the first
-seed with their 3-sigma bounds, outage shaded) and ``003_printed.png`` (the same errors
-with the printed formulas).
+``run(plot_dir=None, quick=False, seeds=None)`` returns rows ``{"ref", "quantity", "paper",
+"navsim", "unit"}``: the experiment table of the paper's three claims
+(:mod:`navsim.paper.seed003_experiments`: observer on/off, the full-state filter, lc-ekf;
+paper-2012, one satellite, accelerating; three instants; mean and max |error| over seeds
+0-9 by default with 95 % intervals, CPU per step), the printed figures, the printed
+formulas, the deterministic checks and the verdicts (rows with a ``text`` key). With
+``plot_dir`` it writes ``003_errors.png`` (state errors of seed 0 with their 3-sigma
+bounds, outage shaded) and ``003_printed.png`` (the same errors with the printed formulas).
 
 The example (003, "Example")
 ----------------------------
@@ -39,35 +43,94 @@ too. (Relative to the initial error the percentages would mean something else; w
 heading-like axis, nearly unobservable at constant speed on a gentle curve, cannot
 reach.)
 
-Findings (``run()``, seeds 0-2; machine with 2 shared cores)
------------------------------------------------------------
+Scenario variants (bundled; the paper states none of this)
+---------------------------------------------------------
+* ``paper-2012-accelerating``: the speed is ``20 + 5 sin(2 pi t / 300)`` m/s (15-25 m/s,
+  along-track acceleration amplitude 2 pi 5 / 300 = 0.105 m/s^2, an ordinary train
+  acceleration); one whole acceleration/deceleration cycle falls inside the outage. The
+  along-track acceleration is what makes the heading-like attitude combination observable
+  (at constant speed only v^2/R = 0.005 m/s^2 and the Coriolis 2 Omega v sin(phi) = 2e-3
+  m/s^2 reach it).
+* ``paper-2012-one-satellite``: only PRN 18, due south of the northbound track (azimuth
+  174-175 deg) at 51-60 deg elevation over the run: the literal (15) with scalar Z_R, Z_V.
+  Without a receiver clock (the paper's model) one pseudorange and one Doppler observe
+  the along-track position and speed; the nine-state filter gets too little for its
+  cross-track and vertical states; lc-ekf (least-squares fixes, four satellites) cannot
+  run and is left out.
+
+The end-of-outage instant
+-------------------------
+The outage is [400, 700): the "end of outage" figures are taken at 699.99 s, the last
+step before the first GNSS update after the outage (:func:`outage_instants`), not at
+700.00 s after that update (seed 0, paper-ekf: 26.9 m before, 13.7 m after the update).
+
+The systematic end-of-outage error (issue: negative latitude error on every seed tried)
+------------------------------------------------------------------------------------
+Deterministic checks (:func:`navsim.paper.seed003_experiments.deterministic_checks`,
+printed by ``navsim paper 003``): with a noise-free IMU and no GNSS, (7)-(8) of paper-ekf
+and (1) of full-state-ekf integrated open loop from the true state stay on the truth to
+2e-8 m, 2e-12 m/s and 7e-15 rad over 100 s, and the residual (13) at the true state is
+below 2e-15 m/s^2; so gravity (with the physical centrifugal sign), Earth rate, specific
+force definition and IMU sample timing agree between the truth and the filters, and
+nothing was changed on the truth side. The noise is zero-mean (seed 0, 400 s: IMU
+increments' mean error within one standard error; pseudorange and Doppler errors over 10
+seeds x 200 s: -0.10 +- 0.12 m and -0.001 +- 0.004 m/s).
+
+The outage drift is a linear function of zero-mean inputs, dominated by the initial
+heading error, which at constant speed stays near its 0.1-deg prior and couples through
+the Earth rate into the tilt (psi_E' ~ Omega cos(phi) psi_U: the north accelerometer
+error grows with time): flipping the sign of every prior error flips that part (lc-ekf,
+seed 0: -22.7 m as drawn, +1.6 m flipped, -10.6 m with the prior at the truth; seed 2:
+-45.4 / -13.6 / -29.5 m), with -7.4 m per mrad of initial heading error for lc-ekf (the
+same slope on both seeds). Seeds 0-3 happen to have positive initial heading errors
+(+0.93, +0.07, +1.23, +0.55 sigma; seeds 0-14: +0.50 sigma on average), hence the same
+sign on every seed tried. Regressing the end-of-outage latitude error on the drawn heading
+error (e = a + b dh0 over seeds 0-14) leaves intercepts of -4.9 to -6.9 m with standard
+errors of 3.3-4.8 m (1.0-2.1 SE) for paper-ekf, paper-ekf without the observer, lc-ekf and
+the full-state filter: no significant bias once the heading draw is accounted for
+(paper-ekf's 2.1 SE is borderline; more seeds with ``--seeds``). The printed centrifugal
+sign, by contrast, is a real bias: +17.5 +- 3.3 m at the same regression, a deterministic
++24-26 m shift against the corrected filter on every seed (its 0.034 m/s^2 error is
+absorbed before the outage as a 3.45 mrad tilt, which stops matching as the track turns
+during the outage). It "did better" on seeds 0-2 only because that shift cancels their
+negative heading-driven drift. The raw 20-seed means and standard errors are in the
+project CHANGELOG (issue 12).
+
+Which printed matrix is wrong: Phi(beta, gamma), B = D(lambda + Omega t, -phi, 0) or D?
+--------------------------------------------------------------------------------------
+Phi(beta, gamma) is printed in (1), (7) and Appendix 2, B = D(lambda + Omega t, -phi, 0)
+is stated as a definition, and Appendix 1 prints D once. With D as printed (``D = Rz(gamma)
+Rx(alpha) Ry(beta)``: beta is the *first* rotation) neither Phi(beta, gamma) nor that B
+is right. If instead Appendix 1 had alpha and beta interchanged, ``D'(a, b, g) = D(b, a,
+g)`` (the first-listed angle is the first rotation, as Euler-Krylov angles are usually
+listed), then the printed Phi(beta, gamma) is exactly the kinematic matrix of D' and the
+printed ``B = D'(lambda + Omega t, -phi, 0)`` is exactly the ENU frame ``D(-phi, lambda +
+Omega t, 0)`` (first the longitude about the Earth axis, then the latitude): one misprint,
+printed once, explains both, against two independent misprints (Phi in three places and B)
+otherwise. Checked in ``tests/estimators/test_seed003_experiments.py``
+(``test_one_misprint_in_appendix_1_explains_both_printed_phi_and_b``: B to the last bit,
+Phi by central differences of D' along the printed rates). navsim keeps Appendix 1's D as
+printed and uses Phi(alpha, gamma) and D(-phi, lambda + Omega t, 0): the same filter with
+alpha and beta renamed, so no figure depends on the choice.
+
+Findings of the first reruns (seeds 0-2, covariance step 0.01 s; before the experiment table)
+--------------------------------------------------------------------------------------------
 * Corrected formulas, at t = 1000 s, max over seeds: V_Y 0.07 % (paper 4 %), attitude
   0.9 % of gamma = 0.88 mrad (paper 0.1 %; alpha and beta are at ~1e-5 rad, 0.001 %),
-  latitude 2.8 m (paper 14 m). At the end of the outage (700 s): V_Y 0.5 %, latitude
-  21 m. So the printed figures are met except the relative attitude figure, which holds
-  for alpha and beta but not for gamma: the heading-like combination of the angles is seen
-  only through the small lateral (v^2/R = 0.005 m/s^2) and Coriolis accelerations and
-  stays near its 0.1 deg prior. Read against |alpha| = 0.83 rad, 0.88 mrad is 0.1 %.
+  latitude 2.8 m (paper 14 m). So the printed figures are met except the relative
+  attitude figure, which holds for alpha and beta but not for gamma: the heading-like
+  combination of the angles is seen only through the small lateral and Coriolis
+  accelerations at constant speed and stays near its 0.1 deg prior.
 * Consistency: NIS per degree of freedom 1.003; 5-state NEES 5.14 averaged over seeds 0-9
-  x 300 s (99 % of the times inside the 95 % band), 5.63 over seeds 0-19 (88 % inside
-  the narrower 20-seed band) and 6.5 over these three 1000-s runs - a weak statistic
-  (3 seeds, errors correlated over hundreds of seconds). Without stacking Z_ax into (16)
-  the 10-seed value is 5.12, with step-mean inputs 4.56.
+  x 300 s, 5.63 over seeds 0-19 (tests/estimators/test_paper_ekf.py).
 * Printed centrifugal sign: absorbed as a 3.45 mrad tilt of the angles
-  (2 Omega^2 r cos(phi) sin(phi) / g), position and speed barely affected (0.25 m,
-  0.02 %). Printed kinematic matrix Phi(beta, gamma): the angles are wrong by 1.4 rad,
-  V_Y by 25 % and the latitude by 850 m at the end (7.9 km at the end of the outage).
-  Neither variant reproduces the printed figures; the literal model is far worse than
-  them, so the authors' own code presumably had the kinematics right.
+  (2 Omega^2 r cos(phi) sin(phi) / g). Printed kinematic matrix Phi(beta, gamma) with D as
+  printed: the angles are wrong by 1.4 rad, V_Y by 25 % and the latitude by 850 m at the
+  end.
 * Checks: the compact observer equals (13) transcribed literally to 8e-17; (7) and (13)
   vanish on the simulator's exact motion (6e-14, 3e-16 m/s^2) with the physical
   centrifugal sign and leave 0.034 and 0.0047 m/s^2 with the printed one; Jacobians
   agree with finite differences to 1e-7.
-* Speed: the filter needs 16.6 s CPU per 1000-s episode (166 us per step) with the
-  covariance RK4 at the navigation step, 4.4 s with ``cov_step_s=0.1`` (same end errors
-  within noise); the 2 s goal is not reached in pure Python. Per step: four RK4 stages of
-  (14) (~3-5 us each); per covariance step: the Jacobians (~35 us, one complex-step
-  evaluation) and the Riccati RK4 (~60-80 us; every 5 x 5 numpy call costs 1-3 us here).
 
 References
 ----------
