@@ -18,11 +18,18 @@ steps with m = 2 IMU sub-samples per step, so 1 step = 2 IMU samples):
 The machine is shared: only same-process ratios are meaningful. Research notes quote pyins
 at 1.29 M samples/s warm on a quiet machine of this kind.
 
-Run: ``python benchmarks/bench_ins.py [steps ...]`` (default 100000 1000000).
+* with ``--kernels`` first a table per navigation update, CPU time, interleaved repeats:
+  ``method="compiled"`` (the sequential loop compiled by numba,
+  :mod:`navsim.strapdown.compiled`), ``method="scan"``, pyins's numba kernel and a plain
+  compiled loop of quaternion/velocity updates written here (numba; no Earth model), the
+  issue's reference.
+
+Run: ``python benchmarks/bench_ins.py [--kernels] [steps ...]`` (default 100000 1000000).
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -117,6 +124,98 @@ def pyins_runners(n: int):
     return public, raw
 
 
+def reference_loop():
+    """A plain compiled loop of quaternion/velocity updates (numba), the issue's reference:
+    per step the rotation vector's quaternion (sin, cos, sqrt), one quaternion product and
+    normalisation, the body-to-navigation rotation of the velocity increment plus gravity,
+    and a position sum. No Earth rate, transport rate, Coriolis or radii. None without numba."""
+    try:
+        import numba
+    except ImportError:
+        return None
+
+    @numba.njit(cache=True)
+    def loop(theta, dv, dt, q, v, p):
+        q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
+        v0, v1, v2 = v[0], v[1], v[2]
+        p0, p1, p2 = p[0], p[1], p[2]
+        for k in range(theta.shape[0]):
+            x, y, z = theta[k, 0], theta[k, 1], theta[k, 2]
+            a = math.sqrt(x * x + y * y + z * z)
+            c, s = math.cos(0.5 * a), (math.sin(0.5 * a) / a if a > 0.0 else 0.5)
+            b0, b1, b2, b3 = c, s * x, s * y, s * z
+            q0, q1, q2, q3 = (q0 * b0 - q1 * b1 - q2 * b2 - q3 * b3, q0 * b1 + q1 * b0 + q2 * b3 - q3 * b2,
+                              q0 * b2 - q1 * b3 + q2 * b0 + q3 * b1, q0 * b3 + q1 * b2 - q2 * b1 + q3 * b0)
+            n = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+            q0, q1, q2, q3 = q0 * n, q1 * n, q2 * n, q3 * n
+            dx, dy, dz = dv[k, 0], dv[k, 1], dv[k, 2]
+            v0 += (q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3) * dx + 2 * (q1 * q2 - q0 * q3) * dy \
+                + 2 * (q1 * q3 + q0 * q2) * dz
+            v1 += 2 * (q1 * q2 + q0 * q3) * dx + (q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3) * dy \
+                + 2 * (q2 * q3 - q0 * q1) * dz
+            v2 += 2 * (q1 * q3 - q0 * q2) * dx + 2 * (q2 * q3 + q0 * q1) * dy \
+                + (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3) * dz - 9.81 * dt
+            p0 += v0 * dt
+            p1 += v1 * dt
+            p2 += v2 * dt
+        q[0], q[1], q[2], q[3] = q0, q1, q2, q3
+        v[0], v[1], v[2] = v0, v1, v2
+        p[0], p[1], p[2] = p0, p1, p2
+
+    return loop
+
+
+def _cpu(fn, repeat: int) -> float:
+    """Median CPU seconds of ``repeat`` calls."""
+    times = []
+    for _ in range(repeat):
+        c0 = time.process_time()
+        fn()
+        times.append(time.process_time() - c0)
+    return sorted(times)[len(times) // 2]
+
+
+def kernel_table(n: int = 200_000, repeat: int = 5) -> None:
+    """Per navigation update, CPU time, interleaved: navsim's compiled loop, scan and
+    sequential integrators on precomputed body terms, pyins's numba kernel, the reference loop."""
+    from navsim.strapdown import compiled
+    from navsim.strapdown.ins import body_terms, integrate_body_terms
+
+    state, dth, dv, th_r, dv_r = _data(n)
+    terms = body_terms(dth, dv, None, None, DT, coning="two-sample", sculling="two-sample", position="trapezoid")
+    args = (terms.quat_body, terms.dv_body, terms.ds_body, terms.rule, DT, WGS84)
+    runs = {}
+    if compiled.available():
+        integrate_body_terms(state, *(a[:10] if isinstance(a, np.ndarray) else a for a in args), method="compiled")
+        runs["navsim compiled loop (numba), two-sample + trapezoid"] = lambda: integrate_body_terms(
+            state, *args, method="compiled")
+    runs["navsim scan (NumPy), two-sample + trapezoid"] = lambda: integrate_body_terms(state, *args, method="scan")
+    pyins = pyins_runners(n)
+    if pyins is not None:
+        runs["pyins numba kernel (one update per increment)"] = pyins[1]
+    ref = reference_loop()
+    if ref is not None:
+        theta, dvel = dth.sum(1), dv.sum(1)
+        q, v, p = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), np.zeros(3)
+        ref(theta[:10], dvel[:10], DT, q, v, p)
+        runs["plain compiled quaternion/velocity loop (reference)"] = lambda: ref(theta, dvel, DT, q, v, p)
+    times = {k: [] for k in runs}
+    for _ in range(repeat):
+        for k, fn in runs.items():
+            times[k].append(_cpu(fn, 1))
+    med = {k: sorted(v)[len(v) // 2] for k, v in times.items()}
+    py_key = "pyins numba kernel (one update per increment)"
+    ref_key = "plain compiled quaternion/velocity loop (reference)"
+    print(f"\nPer navigation update, {n} updates, CPU time, median of {repeat} interleaved repeats "
+          "(integration alone: body terms precomputed):\n")
+    print("| integrator | M updates/CPU s | x pyins kernel | x reference loop |")
+    print("|---|---:|---:|---:|")
+    for k, t in med.items():
+        xp = f"{med[py_key] / t:.2f}" if py_key in med else "-"
+        xr = f"{med[ref_key] / t:.2f}" if ref_key in med else "-"
+        print(f"| {k} | {n / t / 1e6:.2f} | {xp} | {xr} |")
+
+
 def main(sizes=(100_000, 1_000_000)) -> None:
     from navsim.strapdown.ins import body_terms, integrate_body_terms
 
@@ -143,7 +242,7 @@ def main(sizes=(100_000, 1_000_000)) -> None:
             terms = body_terms(*arrays, DT, **methods)
             args = (terms.quat_body, terms.dv_body, terms.ds_body, terms.rule, DT, WGS84)
             t_terms = _best(lambda: body_terms(*arrays, DT, **methods), repeat)
-            for method in ("sequential", "scan"):
+            for method in ("sequential", "scan", "compiled"):
                 reps = 1 if method == "sequential" else repeat
                 t_int = _best(lambda: integrate_body_terms(state, *args, method=method), reps)
                 print(f"  navsim {method:10s} {label:38s} integration {_rate(t_int, n)}")
@@ -164,4 +263,11 @@ def main(sizes=(100_000, 1_000_000)) -> None:
 
 
 if __name__ == "__main__":
-    main(tuple(int(float(x)) for x in sys.argv[1:]) or (100_000, 1_000_000))
+    # python benchmarks/bench_ins.py [--kernels] [steps ...]: --kernels first prints the
+    # per-update table (compiled loop, scan, pyins kernel, reference loop)
+    if "--kernels" in sys.argv:
+        kernel_table()
+    sizes = tuple(int(float(x)) for x in sys.argv[1:] if x != "--kernels") or (100_000, 1_000_000)
+    print("\n```")
+    main(sizes)
+    print("```")

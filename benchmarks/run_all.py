@@ -30,7 +30,7 @@ RESULTS_DIR = HERE / "results"
 PAGE = HERE / "RESULTS.md"
 
 # Arguments a script runs with for the results page (besides --quick when asked).
-DEFAULT_ARGS: dict[str, list[str]] = {}
+DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"]}
 
 
 def _scripts() -> list[str]:

@@ -114,8 +114,13 @@ __all__ = [
     "sequential_rows",
 ]
 
-METHODS = ("auto", "sequential", "scan")
+METHODS = ("auto", "sequential", "scan", "compiled")
 """Integration methods of :func:`integrate` and :func:`integrate_body_terms`."""
+
+AUTO_COMPILED = False
+"""``method="auto"`` uses the compiled loop (numba installed) also where it would use the
+scan (False: long runs keep the scan's numbers; short runs use the compiled loop, which is
+the sequential loop bit for bit)."""
 
 AUTO_SCAN_MIN_STEPS = 4096
 """``method="auto"`` uses the scan integrator from this many steps on, the loop below."""
@@ -401,6 +406,21 @@ def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | No
     return InsSolution(pos[:, 0], pos[:, 1], pos[:, 2], np.array(out_vel), np.array(out_q), compensation)
 
 
+def _run_compiled(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
+    """The sequential loop compiled (:mod:`navsim.strapdown.compiled`)."""
+    from . import compiled
+
+    n = len(dv_body)
+    start = np.array([state.lat, state.lon, state.h, *state.compensation, *state.velocity_n, *state.quat_nb],
+                     dtype=float)
+    pos, vel, quat, comp = np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 4)), np.empty(3)
+    exact = ds_body is not None
+    compiled.kernel()(compiled.earth_constants(earth), start, np.ascontiguousarray(quat_body),
+                      np.ascontiguousarray(dv_body), np.ascontiguousarray(ds_body) if exact else np.zeros((1, 3)),
+                      exact, rule == "trapezoid", float(dt), pos, vel, quat, comp)
+    return InsSolution(pos[:, 0].copy(), pos[:, 1].copy(), pos[:, 2].copy(), vel, quat, tuple(comp.tolist()))
+
+
 def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compensation, quat_body, dv_body,
                     ds_body, rule: str | None, dt: float, earth: EarthModel):
     """The sequential loop of :func:`integrate_body_terms` on Python sequences.
@@ -580,10 +600,14 @@ def integrate_body_terms(
     dt : float
         Navigation step, s.
     earth : EarthModel
-    method : {"auto", "sequential", "scan"}
+    method : {"auto", "sequential", "scan", "compiled"}
         "sequential": the per-step loop (module notes). "scan": the loop-free window
         fixed point of :mod:`navsim.strapdown.scan` (same solution to rounding, several
-        times faster for long runs). "auto": "scan" for n >= AUTO_SCAN_MIN_STEPS steps.
+        times faster for long runs). "compiled": the sequential loop compiled by numba
+        (:mod:`navsim.strapdown.compiled`, extra ``fast``; the sequential numbers bit for
+        bit). "auto": "scan" for n >= AUTO_SCAN_MIN_STEPS steps (the compiled loop there
+        too if :data:`AUTO_COMPILED`), below that the compiled loop if numba is installed,
+        else the sequential loop.
     window : int, optional
         Steps per scan window (default :data:`navsim.strapdown.scan.DEFAULT_WINDOW`).
 
@@ -611,6 +635,14 @@ def integrate_body_terms(
             raise ConfigError("ds_body", "an array of shape (n, 3)", ds_body.shape)
     else:
         ds_body = None
+    if method == "compiled" or (method == "auto" and (n < AUTO_SCAN_MIN_STEPS or AUTO_COMPILED)):
+        from . import compiled
+
+        if compiled.available():
+            return _run_compiled(initial_state, quat_body, dv_body, ds_body, rule, dt, earth)
+        if method == "compiled":  # (auto falls through to the NumPy methods)
+            raise ConfigError("method", "'compiled' with numba installed (extra 'fast'), or 'auto'/'scan'",
+                              method)
     if method == "scan" or (method == "auto" and n >= AUTO_SCAN_MIN_STEPS):
         from .scan import DEFAULT_WINDOW, integrate_scan
 
@@ -653,14 +685,16 @@ def integrate(
         accurate method the inputs allow (:func:`resolve_methods`). Position rules
         "rectangle" and "trapezoid" act on the ENU velocities; the other names supply
         the body-frame double integral of the exact form (5.2).
-    method : {"auto", "sequential", "scan"}
+    method : {"auto", "sequential", "scan", "compiled"}
         "sequential": the per-step predictor-corrector loop of the module notes.
         "scan": the same discrete equations solved without a per-step loop
         (:mod:`navsim.strapdown.scan`: parallel prefix products for the body rotations,
         a fixed-point iteration per window for the navigation-frame terms); the same
         solution up to rounding and 4-8 times faster on long runs (benchmarks/bench_ins.py).
+        "compiled": the loop compiled by numba (extra ``fast``; bit for bit "sequential").
         "auto" (default): "scan" from :data:`AUTO_SCAN_MIN_STEPS` steps on, else
-        "sequential" (so short runs, :func:`ins_step` and stepped use are bit-for-bit the loop).
+        "compiled" with numba installed or "sequential" (so short runs, :func:`ins_step`
+        and stepped use are bit-for-bit the loop); see :func:`integrate_body_terms`.
     window : int, optional
         Steps per scan window (default :data:`navsim.strapdown.scan.DEFAULT_WINDOW`).
 
