@@ -735,6 +735,7 @@ def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: b
     """Write the campaign report: per scenario a folder with navsim.report's bench
     files and plots, and ``index.md`` / ``index.html`` over all scenarios."""
     from .metrics import NUMERIC_FIELDS
+    from .provenance import provenance, provenance_line
     from .report import KEY_METRICS, bench_markdown, write_bench
 
     out = Path(out_dir) if out_dir is not None else Path(spec.report_dir)
@@ -750,8 +751,12 @@ def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: b
     body = [f"<h1>navsim campaign: {html.escape(spec.name)}</h1>",
             f"<p>{len(spec.scenarios)} scenario(s) &times; {len(spec.estimators)} estimator(s) &times; "
             f"{len(spec.seeds)} seed(s) = {spec.size} episodes. Cells: mean across seeds [{interval}].</p>"]
+    prov = provenance({sc.label: sc.config_hash for sc in spec.scenarios})
+    md += [f"Provenance: {provenance_line(prov)}", ""]
+    body.append(f"<p><small>Provenance: {html.escape(provenance_line(prov))}</small></p>")
     for sc in spec.scenarios:
         res = results[sc.label]
+        res.provenance = {**prov, "scenario_hash": sc.config_hash}
         folder = out / sc.label
         have_any = any(res.scores.values())
         files = write_bench(res, folder, plots=plots and have_any)
@@ -776,6 +781,9 @@ def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: b
                     f'<a href="{html.escape(sc.label)}/bench.json">bench.json</a></p>')
     md_path = out / "index.md"
     md_path.write_text("\n".join(md), encoding="utf-8")
+    prov_path = out / "provenance.json"
+    prov_path.write_text(json.dumps(prov, indent=1) + "\n", encoding="utf-8")
+    paths.append(prov_path)
     style = ("body{font-family:sans-serif;margin:2em;max-width:80em}table{border-collapse:collapse;font-size:90%}"
              "td,th{border:1px solid #bbb;padding:2px 6px;text-align:left}tr:nth-child(even){background:#f4f4f4}")
     html_path = out / "index.html"

@@ -154,8 +154,19 @@ def _cmd_paper(args) -> int:
         from .report import parse_seeds
 
         kwargs["seeds"] = parse_seeds(args.seeds)
+    from .provenance import provenance, provenance_line
+
     rows = module.run(**kwargs)
+    scenarios = None
+    if args.seed_id == "003":  # its experiments run on the bundled paper-2012 scenarios
+        from .scenario import list_scenarios, load_scenario
+
+        scenarios = {n: load_scenario(n) for n in list_scenarios() if n.startswith("paper-2012")}
+    prov = provenance(scenarios)
     if args.json:
+        # provenance as rows of the same schema, so the output stays one list of rows
+        rows = list(rows) + [{"ref": "provenance", "quantity": k, "paper": None, "navsim": v, "unit": ""}
+                             for k, v in prov.items()]
         print(json.dumps(rows, indent=1))
         return 0
     header = ("ref", "quantity", "paper", "navsim", "unit")
@@ -167,6 +178,7 @@ def _cmd_paper(args) -> int:
     for row in rows:  # the experiment table and the verdicts (seed 003)
         if "text" in row:
             print(f"\n{row['ref']}, {row['quantity']}:\n{row['text']}")
+    print(f"\nProvenance: {provenance_line(prov)}")
     if args.plot_dir:
         print(f"plots in {args.plot_dir}", file=sys.stderr)
     return 0

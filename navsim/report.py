@@ -41,6 +41,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .errors import ConfigError
+from .provenance import provenance, provenance_line
 from .metrics import (
     SCORE_FIELDS,
     EpisodeScore,
@@ -241,6 +242,7 @@ class BenchResult:
     confidence: float
     scores: dict[str, dict[int, EpisodeScore]] = field(default_factory=dict)
     failures: list[dict] = field(default_factory=list)
+    provenance: dict = field(default_factory=dict)
     summary: dict[str, dict[str, MetricSummary]] = field(default_factory=dict)
     horizontal_samples: dict[str, np.ndarray] = field(default_factory=dict)
     mc_t: np.ndarray | None = None
@@ -271,7 +273,7 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
     for name in names:  # bad options are a configuration error: fail before simulating
         make(name, **_options_for(options, name))
     seeds = list(seeds)
-    result = BenchResult(scenario.name, names, seeds, method, confidence)
+    result = BenchResult(scenario.name, names, seeds, method, confidence, provenance=provenance(scenario))
     sim = Simulator(scenario)
     track = build_track(scenario)
     steps = scenario.timing.steps
@@ -363,6 +365,8 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
     lines = [f"# navsim bench: {result.scenario}", "",
              f"Seeds {_seed_text(result.seeds)} ({len(result.seeds)}); cells: mean across seeds "
              f"[{100 * result.confidence:g} % {interval}]; 'diverged' is the fraction of runs.", ""]
+    if result.provenance:
+        lines += [f"Provenance: {provenance_line(result.provenance)}", ""]
     names = result.estimators
     lines.append("| metric | unit | " + " | ".join(names) + " |")
     lines.append("|---|---|" + "---|" * len(names))
@@ -447,6 +451,7 @@ def bench_json(result: BenchResult) -> dict:
         "interval": {"method": result.method, "confidence": result.confidence},
         "summary": {n: {k: v.as_dict() for k, v in result.summary[n].items()} for n in result.estimators},
         "monte_carlo_nees": mc, "runs": runs, "failures": result.failures,
+        "provenance": result.provenance,
     }
 
 
@@ -498,11 +503,14 @@ def cmd_run(args) -> int:
         bar.close()
     series = error_series(record)
     score = score_episode(record, series=series, divergence_threshold_m=args.divergence_threshold_m)
+    prov = provenance(scenario)
     if args.json:
-        print(json.dumps(score.to_flat_dict()))
+        print(json.dumps({**score.to_flat_dict(), **{k: prov[k] for k in
+                                                     ("navsim_version", "command", "scenario_hash", "date_utc")}}))
     else:
         print(f"# {name} on {scenario.name}, seed {args.seed}")
         print(format_score_table(score))
+        print(f"\nProvenance: {provenance_line(prov)}")
     if args.plot:
         from .plots import plot_errors
 
