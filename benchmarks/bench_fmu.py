@@ -1,69 +1,148 @@
-"""Plant FMU steps per second under fmpy, beside the core stepped directly, in one process.
+"""FMU doStep cost under fmpy against its floor, in one process (issue 11's FMU goals).
 
 For the bundled ``paper-2012`` scenario (0.01 s navigation step, 24 GNSS channels,
-4 multiple-integral orders) over ``steps`` navigation steps, seed 0:
+4 multiple-integral orders), seed 0, communication step = one navigation step:
 
-* core ``Simulator.step()`` (buffered single steps, what the FMU runtime calls) and
-  ``Simulator.advance(steps)`` (one vectorised chunk), after a warm-up episode;
-* the plant FMU under fmpy, FMI 2 (pythonfmu) and FMI 3 (pythonfmu3), communication
-  step = one navigation step: ``doStep`` alone, and ``doStep`` plus reading every
-  output (what a master connecting all signals does).
+* ``empty``: an empty pythonfmu FMU (FMI 2, one output, ``do_step`` returns at once):
+  the floor of any pythonfmu doStep under fmpy;
+* ``core``: the core's ``Simulator.step()`` on the same scenario, in steady state (the
+  first chunk generated before timing, as for the FMUs);
+* ``plant``: navsim's plant FMU doStep, FMI 2 and FMI 3 (the C guard of
+  :mod:`navsim.fmu.guard` in front of the shim), in steady state; goal <= 2 x
+  (empty + core);
+* ``lc-ekf batch``: CPU time per step of lc-ekf's ``step_batch`` in ``run_episode``;
+  ``estimator``: the estimator FMU's doStep (FMI 2, lc-ekf) fed with the plant's outputs
+  (only its doStep timed); goal <= 2 x (empty + lc-ekf batch).
 
-The machine is shared: only same-process ratios are meaningful.
+Rows are timed in interleaved rounds; the medians are printed, in microseconds of wall
+time per step (the FMUs run in this process). The machine may be shared: only the
+same-process ratios are meaningful.
 
-Run: ``python benchmarks/bench_fmu.py [steps]`` (default 2000).
+Run: ``python benchmarks/bench_fmu.py [steps] [rounds]`` (default 1000 3).
 """
 
 from __future__ import annotations
 
+import statistics
 import sys
 import tempfile
+import textwrap
 import time
 from pathlib import Path
 
+_EMPTY_SLAVE = textwrap.dedent('''\
+    from pythonfmu import Fmi2Causality, Fmi2Slave, Real
 
-def main(steps: int = 2000) -> None:
+
+    class EmptyBench(Fmi2Slave):
+        """One output, nothing computed: the floor of a pythonfmu doStep."""
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self.y = 0.0
+            self.register_variable(Real("y", causality=Fmi2Causality.output))
+
+        def do_step(self, current_time, step_size):
+            return True
+    ''')
+
+
+def main(steps: int = 1000, rounds: int = 3) -> None:
+    from pythonfmu.builder import FmuBuilder
+
+    from navsim import estimators
+    from navsim.episode import run_episode
     from navsim.fmu.build import build_fmu
     from navsim.fmu.master import FmuInstance, _Plan
     from navsim.scenario import load_scenario
     from navsim.simulator import Simulator
 
-    scenario = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": steps * 0.01 + 1.0}})
-    rows = []
-    sim = Simulator(scenario)
-    sim.reset(0)
-    sim.advance(steps)  # warm-up (first-use costs of the truth generator)
-    sim.reset(0)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        sim.step()
-    rows.append(("core Simulator.step()", steps / (time.perf_counter() - t0)))
-    sim.reset(0)
-    t0 = time.perf_counter()
-    sim.advance(steps)
-    rows.append(("core Simulator.advance(n), one chunk", steps / (time.perf_counter() - t0)))
+    warm = 1100  # past the simulator's first 1000-step chunk
+    scenario = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": (warm + steps) * 0.01 + 1.0}})
+    dt = scenario.timing.nav_period_s
+    clock = time.perf_counter
+    times: dict[str, list[float]] = {}
+
+    def add(key, value):
+        times.setdefault(key, []).append(value)
+
     with tempfile.TemporaryDirectory() as tmp:
-        for fmi in (2, 3):
-            path = build_fmu(scenario, "plant", fmi, Path(tmp) / f"plant{fmi}.fmu")
-            for read_all in (False, True):
+        script = Path(tmp) / "empty_bench.py"
+        script.write_text(_EMPTY_SLAVE)
+        empty = FmuBuilder.build_FMU(script, dest=tmp)
+        plants = {fmi: build_fmu(scenario, "plant", fmi, Path(tmp) / f"plant{fmi}.fmu") for fmi in (2, 3)}
+        est_path = build_fmu(scenario, "estimator", 2, Path(tmp) / "est.fmu", estimator="lc-ekf")
+        for _ in range(rounds):
+            with FmuInstance(empty, "empty") as inst:
+                inst.initialize()
+                for k in range(warm):
+                    inst.do_step(k * dt, dt)
+                t0 = clock()
+                for k in range(warm, warm + steps):
+                    inst.do_step(k * dt, dt)
+                add("empty", (clock() - t0) / steps)
+            sim = Simulator(scenario)
+            sim.reset(0)
+            for _k in range(warm):
+                sim.step()
+            t0 = clock()
+            for _k in range(steps):
+                sim.step()
+            add("core", (clock() - t0) / steps)
+            for fmi, path in plants.items():
                 with FmuInstance(path, "plant") as inst:
                     inst.initialize({"seed": 0})
-                    outputs = [n for n, v in inst.variables.items() if v.causality == "output"]
-                    plan = _Plan(inst, outputs)
-                    inst.do_step(0.0, 0.01)  # warm-up
-                    t0 = time.perf_counter()
-                    for k in range(1, steps):
-                        inst.do_step(k * 0.01, 0.01)
-                        if read_all:
-                            plan.unpack(plan.fetch())
-                    rate = (steps - 1) / (time.perf_counter() - t0)
-                what = f"doStep + get all {len(outputs)} outputs" if read_all else "doStep only"
-                rows.append((f"plant FMU, FMI {fmi}, fmpy: {what}", rate))
-    core = rows[0][1]
-    print(f"paper-2012, {steps} navigation steps of 0.01 s")
-    print(f"{'case':58s} {'steps/s':>10s} {'vs core step()':>15s}")
-    for name, rate in rows:
-        print(f"{name:58s} {rate:10.0f} {rate / core:15.2f}")
+                    for k in range(warm):
+                        inst.do_step(k * dt, dt)
+                    t0 = clock()
+                    for k in range(warm, warm + steps):
+                        inst.do_step(k * dt, dt)
+                    add(f"plant{fmi}", (clock() - t0) / steps)
+            record = run_episode(scenario, estimators.make("lc-ekf"), seed=0)
+            add("lc_batch", float(record.step_time_s[warm:].mean()))
+            plant, est = FmuInstance(plants[2], "plant"), FmuInstance(est_path, "estimator")
+            try:
+                plant.initialize({"seed": 0})
+                est.initialize({})
+                inputs = [n for n, v in est.variables.items() if v.causality == "input"]
+                src, dst = _Plan(plant, inputs), _Plan(est, inputs)
+
+                def push():
+                    raw = src.fetch()
+                    for t, (vrs, _) in dst.groups.items():
+                        est.set_raw(t, vrs, raw[t])
+
+                push()
+                spent = 0.0
+                for k in range(warm + steps):
+                    plant.do_step(k * dt, dt)
+                    push()
+                    t0 = clock()
+                    est.do_step(k * dt, dt)
+                    if k >= warm:
+                        spent += clock() - t0
+                add("estimator", spent / steps)
+            finally:
+                plant.free()
+                est.free()
+    med = {k: statistics.median(v) for k, v in times.items()}
+    floor_plant = med["empty"] + med["core"]
+    floor_est = med["empty"] + med["lc_batch"]
+    us = 1e6
+    print(f"paper-2012, {steps} communication steps of {dt:g} s after {warm} warm-up steps, under fmpy; "
+          f"wall time per doStep (lc-ekf batch: CPU time per step), median of {rounds} interleaved round(s)")
+    print()
+    print("| case | us per step | floor | ratio | goal |")
+    print("|---|---:|---|---:|---:|")
+    print(f"| empty pythonfmu FMU doStep (FMI 2) | {med['empty'] * us:.1f} | | | |")
+    print(f"| core Simulator.step() | {med['core'] * us:.1f} | | | |")
+    for fmi in (2, 3):
+        m = med[f"plant{fmi}"]
+        print(f"| plant FMU doStep, FMI {fmi} | {m * us:.1f} | empty + core = {floor_plant * us:.1f} us "
+              f"| {m / floor_plant:.2f} | <= 2 |")
+    print(f"| lc-ekf step_batch per step (run_episode) | {med['lc_batch'] * us:.1f} | | | |")
+    print(f"| estimator FMU doStep (lc-ekf, FMI 2) | {med['estimator'] * us:.1f} | empty + lc-ekf batch = "
+          f"{floor_est * us:.1f} us | {med['estimator'] / floor_est:.2f} | <= 2 |")
 
 
 if __name__ == "__main__":

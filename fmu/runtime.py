@@ -138,6 +138,9 @@ class ValueStore:
                 self.types.append(var.type)
                 self.vars.append(var)
         self._n = len(self.values)
+        # name -> (first value reference, scalar count, shape or None): the runtime's writes
+        # and reads of whole variables, looked up once per call
+        self._slots = {v.name: (self.first_vr[v.name], v.size, v.shape or None) for v in table}
 
     def __len__(self) -> int:
         return self._n
@@ -180,25 +183,50 @@ class ValueStore:
     # -- runtime side ------------------------------------------------------------------
     def write(self, name: str, value) -> None:
         """Set an output (scalar, array or nested list) from the runtime."""
-        vr = self.first_vr[name]
-        var = self.by_name[name]
-        if var.shape:
-            flat = np.asarray(value).ravel().tolist()
+        vr, n, shape = self._slots[name]
+        if shape:
+            flat = (value.ravel() if type(value) is np.ndarray else np.asarray(value).ravel()).tolist()
             if self.fmi == 2:
-                self.values[vr:vr + var.size] = flat
+                self.values[vr:vr + n] = flat
             else:
                 self.values[vr] = flat
         else:
             self.values[vr] = value.item() if hasattr(value, "item") else value
 
+    def block_writer(self, names: list[str]):
+        """A function ``write(flat)`` that sets the variables ``names`` from one flat list
+        of their scalar values in table order: one slice assignment when they are
+        consecutive FMI 2 scalars (the plant's IMU and truth outputs), per variable
+        otherwise."""
+        slots = [self._slots[n] for n in names]
+        values = self.values
+        if self.fmi == 2 and all(b[0] == a[0] + a[1] for a, b in zip(slots, slots[1:])):
+            vr0, total = slots[0][0], sum(n for _, n, _ in slots)
+
+            def write(flat: list) -> None:
+                values[vr0:vr0 + total] = flat
+            return write
+
+        def write_each(flat: list) -> None:
+            k = 0
+            for vr, n, shape in slots:
+                if shape:
+                    if self.fmi == 2:
+                        values[vr:vr + n] = flat[k:k + n]
+                    else:
+                        values[vr] = flat[k:k + n]
+                else:
+                    values[vr] = flat[k]
+                k += n
+        return write_each
+
     def read(self, name: str):
         """The current value of a variable: a Python scalar or a numpy array of its shape."""
-        vr = self.first_vr[name]
-        var = self.by_name[name]
-        if not var.shape:
+        vr, n, shape = self._slots[name]
+        if not shape:
             return self.values[vr]
-        flat = self.values[vr:vr + var.size] if self.fmi == 2 else self.values[vr]
-        return np.asarray(flat, dtype=_NP[var.type]).reshape(var.shape)
+        flat = self.values[vr:vr + n] if self.fmi == 2 else self.values[vr]
+        return np.asarray(flat, dtype=_NP[self.types[vr]]).reshape(shape)
 
 
 _NP = {"real": float, "int": np.int64, "bool": bool, "string": object}
@@ -349,6 +377,13 @@ class PlantRuntime(_RuntimeBase):
         self.sim = Simulator(self.base_scenario)
         self.dims = Dimensions.of(self.sim)
         self.store = ValueStore(plant_variables(self.dims, plant_defaults(self.base_scenario)), fmi)
+        orders = range(1, self.dims.orders + 1)
+        self._write_imu = self.store.block_writer([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
+                                                  + ["imu.dtheta_sub", "imu.dv_sub"])
+        self._write_truth_block = self.store.block_writer(
+            ["truth.s_m", "truth.speed_mps", "truth.accel_mps2", "truth.lat_rad", "truth.lon_rad", "truth.h_m",
+             "truth.velocity_n", "truth.heading_rad", "truth.pitch_rad", "truth.roll_rad", "truth.position_e"])
+        self._epochs: tuple = (None, {})  # (chunk, {step in chunk: epoch index}) of the last chunk served
         self._info(self.base_scenario)
 
     # -- initialisation ---------------------------------------------------------------
@@ -465,11 +500,8 @@ class PlantRuntime(_RuntimeBase):
             dt = self.timing.nav_period_s
             dtheta = compose_multiple_integrals(np.stack([c.imu.dtheta_r[j] for c, j in served])[None], dt)[0]
             dv = compose_multiple_integrals(np.stack([c.imu.dv_r[j] for c, j in served])[None], dt)[0]
-        for r in range(1, self.dims.orders + 1):
-            self.store.write(f"imu.dtheta_r{r}", dtheta[r - 1])
-            self.store.write(f"imu.dv_r{r}", dv[r - 1])
-        self.store.write("imu.dtheta_sub", imu.dtheta_sample[i, :, 0])
-        self.store.write("imu.dv_sub", imu.dv_sample[i, :, 0])
+        self._write_imu(np.concatenate((dtheta.ravel(), dv.ravel(), imu.dtheta_sample[i, :, 0].ravel(),
+                                        imu.dv_sample[i, :, 0].ravel())).tolist())
         if self.dims.odometer:  # distances and pulse counts of consecutive steps add exactly
             self.store.write("odometer.ds_m", math.fsum(float(c.odometer.ds_m[j]) for c, j in served))
             self.store.write("odometer.pulses", int(sum(int(c.odometer.pulses[j]) for c, j in served)))
@@ -479,9 +511,11 @@ class PlantRuntime(_RuntimeBase):
         epoch = None
         for c, j in served:
             if c.gnss is not None and len(c.gnss_step):
-                hit = np.flatnonzero(c.gnss_step == j)
-                if hit.size:
-                    epoch = (c, int(hit[0]))
+                if self._epochs[0] is not c:
+                    self._epochs = (c, {int(step): e for e, step in enumerate(c.gnss_step)})
+                e = self._epochs[1].get(j)
+                if e is not None:
+                    epoch = (c, e)
         self.store.write("gnss.new_epoch", epoch is not None)
         if epoch is not None:
             c, e = epoch
@@ -496,18 +530,11 @@ class PlantRuntime(_RuntimeBase):
             self.store.write("gnss.sat_vel_e", g.sat_vel_e[e])
 
     def _write_truth(self, truth, i: int) -> None:
-        w = self.store.write
-        w("truth.s_m", float(truth.s[i]))
-        w("truth.speed_mps", float(truth.speed[i]))
-        w("truth.accel_mps2", float(truth.accel_along[i]))
-        w("truth.lat_rad", float(truth.lat[i]))
-        w("truth.lon_rad", float(truth.lon[i]))
-        w("truth.h_m", float(truth.h[i]))
-        w("truth.velocity_n", truth.velocity_n[i])
-        w("truth.heading_rad", float(truth.heading[i]))
-        w("truth.pitch_rad", float(truth.pitch[i]))
-        w("truth.roll_rad", float(truth.roll[i]))
-        w("truth.position_e", truth.position_e[i])
+        v, p = truth.velocity_n[i], truth.position_e[i]
+        self._write_truth_block([float(truth.s[i]), float(truth.speed[i]), float(truth.accel_along[i]),
+                                 float(truth.lat[i]), float(truth.lon[i]), float(truth.h[i]), float(v[0]), float(v[1]),
+                                 float(v[2]), float(truth.heading[i]), float(truth.pitch[i]), float(truth.roll[i]),
+                                 float(p[0]), float(p[1]), float(p[2])])
 
 
 # =========================================================================== estimator
