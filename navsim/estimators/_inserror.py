@@ -792,6 +792,7 @@ class ErrorStateIns:
         F = error_dynamics(st.lat, st.h, st.velocity_n, quat_to_mat(st.quat_nb), self._f_n, self.earth, self.noise)
         self._series = _Series.build(F, self.Qc)
         self._poly = None  # navigation-block polynomial of P(tau), built on first use
+        self._nav_block = None  # P9 at every step of the interval, for the one-step path
 
     def _full_covariance(self, j: int) -> np.ndarray:
         """P(tau = j dt) of the current interval (15, 15), symmetrised and guarded."""
@@ -948,11 +949,14 @@ class ErrorStateIns:
         self._f_sum = [fs[0] + (d0 + q0 * u0 + (q2 * u2 - q3 * u1)), fs[1] + (d1 + q0 * u1 + (q3 * u0 - q1 * u2)),
                        fs[2] + (d2 + q0 * u2 + (q1 * u1 - q2 * u0))]
         self._f_count += 1
-        tau = (self._j + 1) * self.dt
-        if self._poly is None:
-            self._poly = self._series.nav_polynomial(self._P0)
-        # P9(tau) = (tau^p)_p @ coefficients, the (1, 9) @ (9, 81) product of a batch of one
-        cov = (np.array([[tau**p for p in range(9)]]) @ self._poly).reshape(1, 9, 9)
+        if self._nav_block is None:
+            # P9(tau) = (tau^p)_p @ coefficients at every step of the interval in one product,
+            # as advance_body does for the steps of a batch
+            if self._poly is None:
+                self._poly = self._series.nav_polynomial(self._P0)
+            tau = (1 + np.arange(self.interval_steps)) * self.dt
+            self._nav_block = ((tau[:, None] ** np.arange(9)) @ self._poly).reshape(-1, 1, 9, 9)
+        cov = self._nav_block[self._j].copy()
         self._j += 1
         if self._j == self.interval_steps:
             self._pending = self._full_covariance(self._j)

@@ -422,15 +422,15 @@ class LooselyCoupledEkf:
             if self._odo is not None:
                 self._odometer_accumulate(rows, None if odo is None else (odo,), 0, 1)
             self.diverged = self.diverged or eng.diverged
-            row = rows[0]
+            lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
             extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
             if self._fix_index is not None:
                 extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
             if self._odo is not None:
                 extra["odometer_scale"] = float(eng.aux[0])
                 extra["odometer_nis"] = self.odometer_nis
-            return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
-                            covariance=cov[0], extra=extra)
+            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov[0],
+                            extra=extra)
         gnss = ((0, m.gnss),) if m.gnss is not None else ()
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],

@@ -822,9 +822,9 @@ class _TightlyCoupled:
         if m.gnss is None and self.engine is not None:
             rows, c = self.engine.advance_body(self.engine.prepare_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r))
             self.last_extra = self._extra()
-            row = rows[0]
-            return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
-                            covariance=c[0], extra=self.last_extra)
+            lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
+            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=c[0],
+                            extra=self.last_extra)
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
             np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else ()))

@@ -482,7 +482,9 @@ def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compe
     out_q = [(q0, q1, q2, q3)]
     k_lat, k_lon, k_h = compensation
     ev = evaluate(lat, h, ve, vn, vu)
+    left = len(dv_body)
     for (b0, b1, b2, b3), (dx, dy, dz), ds in zip(quat_body, dv_body, ds_list):
+        left -= 1
         rnh, reh, cl, wx, wy, wz, ge, gn, gu = ev
         # mat_nb(k) from q(k)
         c00 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
@@ -557,7 +559,8 @@ def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compe
         out_pos.append((lat, lon, h))
         out_vel.append((ve, vn, vu))
         out_q.append((q0, q1, q2, q3))
-        ev = evaluate(lat, h, ve, vn, vu)
+        if left:  # the rates at t_k+1 start the next step (none after the last)
+            ev = evaluate(lat, h, ve, vn, vu)
     return out_pos, out_vel, out_q, (k_lat, k_lon, k_h)
 
 
