@@ -150,6 +150,12 @@ class AdaptiveFilterEnv(gym.Env):
         Default "lc-ekf"; ``estimator_options`` for a named one.
     decision_period_s : float
         Time between decisions (a whole number of navigation steps), default 1 s.
+    chunk_steps : int
+        Navigation steps the simulator generates per pass (rounded down to whole decision
+        intervals, at least one); the estimator is served one interval at a time from
+        it. The numbers do not depend on it (chunk-invariant generation); a short chunk
+        pays the generator's fixed cost per pass (truth block fits, sensor set-up) at
+        every decision.
     max_scale : float
         Largest factor (the action maps to ``max_scale ** a``).
     reward_cap : float
@@ -161,7 +167,7 @@ class AdaptiveFilterEnv(gym.Env):
 
     def __init__(self, scenario="paper-2012", *, estimator: Any = "lc-ekf", estimator_options: dict | None = None,
                  decision_period_s: float = 1.0, max_scale: float = 10.0, reward_cap: float = 1e4,
-                 render_mode: str | None = None, **overrides: Any) -> None:
+                 chunk_steps: int = 10_000, render_mode: str | None = None, **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
 
@@ -176,6 +182,10 @@ class AdaptiveFilterEnv(gym.Env):
             raise ConfigError("decision_period_s", f"a whole multiple of nav_period_s={timing.nav_period_s}",
                               decision_period_s)
         self.steps_per_decision = int(round(ratio))
+        if int(chunk_steps) != chunk_steps or chunk_steps < 1:
+            raise ConfigError("chunk_steps", "a positive integer", chunk_steps)
+        self.chunk_steps = max(1, int(chunk_steps) // self.steps_per_decision) * self.steps_per_decision
+        self._chunk = None
         self.sim = Simulator(self.scenario)
         self.context = make_context(self.sim)
         self.prn = np.asarray(self.sim.constellation.prn)
@@ -221,15 +231,21 @@ class AdaptiveFilterEnv(gym.Env):
         return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
 
     def _run_interval(self):
+        """Run the estimator over the next decision interval, served from the generated chunk."""
         from navsim.episode import measurement_batch
 
-        chunk = self.sim.advance(self.steps_per_decision)
-        batch = measurement_batch(chunk, self.prn, self.scenario.timing.nav_period_s)
-        out = _step_batch(self.estimator, batch)
-        self.tape.add_chunk(chunk)
-        self.tape.add_estimates(chunk.step0, out)
-        self._k = chunk.step0 + len(chunk)
-        return chunk, out
+        if self._chunk is None or self._pos >= len(self._chunk):
+            self._chunk = self.sim.advance(self.chunk_steps)  # generation is chunk-invariant: the same numbers
+            self._batch = measurement_batch(self._chunk, self.prn, self.scenario.timing.nav_period_s)
+            self.tape.add_chunk(self._chunk)
+            self._pos = 0
+        a = self._pos
+        b = min(a + self.steps_per_decision, len(self._chunk))
+        out = _step_batch(self.estimator, _slice_batch(self._batch, a, b))
+        self.tape.add_estimates(self._chunk.step0 + a, out)
+        self._pos = b
+        self._k = self._chunk.step0 + b
+        return _Interval(self._chunk, a, b), out
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -242,6 +258,7 @@ class AdaptiveFilterEnv(gym.Env):
         self.adapter.capture()
         self.adapter.set(1.0, 1.0)
         self.tape = EpisodeTape(self.n_steps)
+        self._chunk = None
         self._prev = (0.0, 0.0)
         self._last_nis, self._frac_valid, self._last_fix_t = 0.0, 0.0, 0.0
         chunk, out = self._run_interval()  # the first interval runs untuned
@@ -305,6 +322,47 @@ class AdaptiveFilterEnv(gym.Env):
             self._renderer.close()
             self._renderer = None
         super().close()
+
+
+class _Interval:
+    """Steps a..b of a simulator chunk: what the features and the reward read."""
+
+    def __init__(self, chunk, a: int, b: int):
+        tr = chunk.truth
+        self.t = chunk.t[a:b]
+        self.truth = _Truth(tr.lat[a:b], tr.lon[a:b], tr.h[a:b])
+        self.gnss = None
+        self.receiver_outage = np.zeros(0, dtype=bool)
+        if chunk.gnss is not None:
+            local = np.asarray(chunk.gnss_step)
+            sel = np.flatnonzero((local >= a) & (local < b))
+            self.gnss = _Epochs(chunk.gnss.t[sel], chunk.gnss.valid[sel])
+            self.receiver_outage = np.asarray(chunk.receiver_outage)[sel]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+class _Truth:
+    def __init__(self, lat, lon, h):
+        self.lat, self.lon, self.h = lat, lon, h
+
+
+class _Epochs:
+    def __init__(self, t, valid):
+        self.t, self.valid = t, valid
+
+
+def _slice_batch(batch, a: int, b: int):
+    """Steps a..b of a MeasurementBatch (epochs re-indexed)."""
+    if a == 0 and b == len(batch):
+        return batch
+    from navsim.types import MeasurementBatch
+
+    return MeasurementBatch(step=batch.step[a:b], t=batch.t[a:b], dt=batch.dt, dtheta_r=batch.dtheta_r[a:b],
+                            dv_r=batch.dv_r[a:b], dtheta_sub=batch.dtheta_sub[a:b], dv_sub=batch.dv_sub[a:b],
+                            gnss=tuple((j - a, obs) for j, obs in batch.gnss if a <= j < b),
+                            odometer_ds_m=None if batch.odometer_ds_m is None else batch.odometer_ds_m[a:b])
 
 
 def _step_batch(estimator, batch):
