@@ -220,6 +220,28 @@ class ValueStore:
                 k += n
         return write_each
 
+    def block_reader(self, names: list[str]):
+        """A function ``read()`` giving the scalar values of the real variables ``names``
+        as one flat float array, in table order (one slice when they are consecutive FMI 2
+        scalars)."""
+        slots = [self._slots[n] for n in names]
+        values = self.values
+        if self.fmi == 2 and all(b[0] == a[0] + a[1] for a, b in zip(slots, slots[1:])):
+            vr0, total = slots[0][0], sum(n for _, n, _ in slots)
+            return lambda: np.array(values[vr0:vr0 + total], dtype=float)
+
+        def read_each() -> np.ndarray:
+            flat: list = []
+            for vr, n, shape in slots:
+                if self.fmi == 2:
+                    flat.extend(values[vr:vr + n])
+                elif shape:
+                    flat.extend(values[vr])
+                else:
+                    flat.append(values[vr])
+            return np.array(flat, dtype=float)
+        return read_each
+
     def read(self, name: str):
         """The current value of a variable: a Python scalar or a numpy array of its shape."""
         vr, n, shape = self._slots[name]
@@ -554,6 +576,13 @@ class EstimatorRuntime(_RuntimeBase):
         defaults = {"estimator.name": self.meta.get("estimator", ""),
                     "estimator.options": self.meta.get("estimator_options", "")}
         self.store = ValueStore(estimator_variables(self.dims, defaults), fmi)
+        orders = range(1, self.dims.orders + 1)
+        self._read_imu = self.store.block_reader([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
+                                                 + ["imu.dtheta_sub", "imu.dv_sub"])
+        self._write_solution = self.store.block_writer(
+            ["nav.lat_rad", "nav.lon_rad", "nav.h_m", "nav.velocity_n", "nav.heading_rad", "nav.pitch_rad",
+             "nav.roll_rad", "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n", "nav.covariance",
+             "nav.nis"])
         self._info(self.base_scenario)
 
     def exit_initialization_mode(self) -> None:
@@ -684,32 +713,23 @@ class EstimatorRuntime(_RuntimeBase):
                 sat_vel_e=read("gnss.sat_vel_e"), pseudorange_m=read("gnss.pseudorange_m"),
                 pseudorange_rate_mps=read("gnss.pseudorange_rate_mps"), valid=read("gnss.valid"))
         dt = self.timing.nav_period_s
+        flat = self._read_imu()  # [dtheta_r (R, 3), dv_r (R, 3), dtheta_sub (m, 3), dv_sub (m, 3)]
+        a, b = 3 * orders, 3 * self.dims.samples_per_step
         return Measurement(
-            step=k, t=(k + 1) * dt, dt=dt,
-            dtheta_r=np.stack([read(f"imu.dtheta_r{r}") for r in range(1, orders + 1)]),
-            dv_r=np.stack([read(f"imu.dv_r{r}") for r in range(1, orders + 1)]),
-            dtheta_sub=read("imu.dtheta_sub"), dv_sub=read("imu.dv_sub"), gnss=gnss,
+            step=k, t=(k + 1) * dt, dt=dt, dtheta_r=flat[:a].reshape(orders, 3), dv_r=flat[a:2 * a].reshape(orders, 3),
+            dtheta_sub=flat[2 * a:2 * a + b].reshape(-1, 3), dv_sub=flat[2 * a + b:].reshape(-1, 3), gnss=gnss,
             odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
 
     def _write_estimate(self, est, t_s: float) -> None:
         w = self.store.write
         w("nav.t_s", t_s)
         w("nav.step", self.processed)
-        w("nav.lat_rad", float(est.lat))
-        w("nav.lon_rad", float(est.lon))
-        w("nav.h_m", float(est.h))
-        w("nav.velocity_n", np.asarray(est.velocity_n, dtype=float))
-        w("nav.heading_rad", float(est.heading))
-        w("nav.pitch_rad", float(est.pitch))
-        w("nav.roll_rad", float(est.roll))
         cov = np.full((9, 9), np.nan) if est.covariance is None else np.asarray(est.covariance, dtype=float)
-        sigma = np.sqrt(np.abs(np.diag(cov)))
-        w("nav.sigma_position_n", sigma[0:3])
-        w("nav.sigma_velocity_n", sigma[3:6])
-        w("nav.sigma_attitude_n", sigma[6:9])
-        w("nav.covariance", cov)
         nis = getattr(est, "nis", None)
-        w("nav.nis", math.nan if nis is None else float(nis))
+        self._write_solution([float(est.lat), float(est.lon), float(est.h),
+                              *np.asarray(est.velocity_n, dtype=float).tolist(), float(est.heading), float(est.pitch),
+                              float(est.roll), *np.sqrt(np.abs(np.diag(cov))).tolist(), *cov.ravel().tolist(),
+                              math.nan if nis is None else float(nis)])
         w("nav.nis_dof", int(est.nis_dof or 0) if nis is not None else 0)
 
 
