@@ -55,6 +55,7 @@ def _runs(scenario, seed, options, engines, chunk=10_000, monkeypatch=None):
         if name == "source":  # the compiled engine's driver, run by the interpreter
             est._kargs = est._kernel_args()
             monkeypatch.setattr(kernel, "advance", kernel.advance_uncompiled)
+            monkeypatch.setattr(kernel, "outputs_compiled", kernel.outputs)
         parts = [est.step_batch(b) for b in batches]
         if name == "source":
             monkeypatch.undo()
