@@ -379,8 +379,10 @@ def integrated_autocorrelation_time(x: np.ndarray, c: float = 5.0) -> float:
 class NeesSummary:
     """NEES over one episode.
 
-    components : labels of the components used (dimension d = len). steps : number of
-    steps with a finite NEES. anees : time average of NEES (d when consistent).
+    components : labels of the components used. rank : the dimension d of the NEES: the
+    number of components, or less when the covariance claims only a subspace of them (see
+    :func:`nees_series`). steps : number of steps with a finite NEES. anees : time
+    average of NEES (d when consistent).
     lower, upper : 95 % bounds of the time average, ``chi2.ppf(0.025 / 0.975, d N_eff)
     / N_eff``. n_eff : effective sample count N / tau. in_bounds_fraction : fraction of
     steps with NEES inside the per-step 95 % interval of chi2(d). series : (n,) NEES.
@@ -394,10 +396,11 @@ class NeesSummary:
     n_eff: float
     in_bounds_fraction: float
     series: np.ndarray = field(repr=False)
+    rank: int | None = None
 
     @property
     def dof(self) -> int:
-        return len(self.components)
+        return len(self.components) if self.rank is None else self.rank
 
 
 def nees_components(covariance: np.ndarray) -> np.ndarray:
@@ -411,18 +414,80 @@ def nees_components(covariance: np.ndarray) -> np.ndarray:
     return np.flatnonzero(finite[given].all(axis=0))
 
 
+# Numerical rank of a covariance block: eigenvalues of its correlation matrix
+# D^-1/2 P D^-1/2 (scale-free, so metres, m/s and radians mix safely) below this are zero.
+# A full-rank filter's correlation eigenvalues stay far above it (a correlation coefficient
+# of 1 - 1e-9 between two states would be needed to reach it); a covariance mapped from r
+# states through a Jacobian (the along-track filter: s and v) has 9 - r eigenvalues at
+# rounding level, ~1e-16.
+RANK_TOLERANCE = 1e-9
+_RANK_SAMPLES = 64  # steps sampled to find an episode's claimed rank
+
+
+def claimed_rank(covariance: np.ndarray, components) -> int:
+    """The dimension of the error subspace a filter's covariance claims over
+    ``components``: the largest numerical rank (:data:`RANK_TOLERANCE`) of the block at up to
+    64 steps sampled evenly over the episode (steps with a non-finite block skipped)."""
+    p = covariance[:, components][:, :, components]
+    ok = np.flatnonzero(np.all(np.isfinite(p.reshape(len(p), -1)), axis=1))
+    if ok.size == 0:
+        return len(components)
+    pick = ok[np.unique(np.linspace(0, ok.size - 1, min(_RANK_SAMPLES, ok.size)).round().astype(int))]
+    block = p[pick]
+    d = np.sqrt(np.clip(np.diagonal(block, axis1=1, axis2=2), 0.0, None))
+    scale = np.where(d > 0.0, 1.0 / np.where(d > 0.0, d, 1.0), 0.0)
+    corr = block * scale[:, :, None] * scale[:, None, :]
+    lam = np.linalg.eigvalsh(corr)
+    return int(np.max(np.sum(lam > RANK_TOLERANCE * np.maximum(lam[:, -1:], 1e-300), axis=1)))
+
+
+def nees_subspace(errors: np.ndarray, covariance: np.ndarray, components, rank: int) -> np.ndarray:
+    """NEES on the ``rank``-dimensional subspace a singular covariance claims.
+
+    Per step, with the block P = V diag(lam) V^T (eigenvalues descending), NEES =
+    sum_{i < rank} (v_i^T e)^2 / lam_i: the Moore-Penrose form e^T P^+ e with P^+ taken on
+    the claimed subspace (range of P), i.e. the error projected orthogonally onto it; the
+    error outside it (e.g. cross-track, which a map-constrained filter claims is zero) is
+    not scored. Chi-square with ``rank`` degrees of freedom when consistent. The rank comes
+    from the scale-free :func:`claimed_rank`; the projection is in the block's own units,
+    where the range of P is a well-defined subspace.
+    """
+    e = errors[:, components]
+    p = covariance[:, components][:, :, components]
+    out = np.full(len(e), np.nan)
+    ok = np.all(np.isfinite(p.reshape(len(p), -1)), axis=1) & np.all(np.isfinite(e), axis=1)
+    if ok.any():
+        lam, v = np.linalg.eigh(p[ok])
+        lam, v = lam[:, ::-1][:, :rank], v[:, :, ::-1][:, :, :rank]
+        proj = np.einsum("nij,ni->nj", v, e[ok])
+        out[ok] = np.sum(proj**2 / lam, axis=1)
+    return out
+
+
+def nees_series(errors: np.ndarray, covariance: np.ndarray, components) -> tuple[np.ndarray, int]:
+    """NEES per step and its dimension: over ``components`` when the covariance is full
+    rank there (:func:`nees`), else on the subspace it claims (:func:`nees_subspace`)."""
+    rank = claimed_rank(covariance, components)
+    if rank >= len(components):
+        return nees(errors, covariance, components), len(components)
+    return nees_subspace(errors, covariance, components, rank), rank
+
+
 def nees_summary(errors: np.ndarray, covariance: np.ndarray | None, confidence: float = 0.95) -> NeesSummary | None:
-    """NEES, ANEES and their chi-square bounds (None without a usable covariance)."""
+    """NEES, ANEES and their chi-square bounds (None without a usable covariance).
+
+    Over the components with a finite covariance (:func:`nees_components`); when the
+    covariance there is singular, on the subspace it claims, with that dimension
+    (:func:`nees_series`; ``NeesSummary.rank``)."""
     if covariance is None:
         return None
     comps = nees_components(covariance)
     if comps.size == 0:
         return None
-    series = nees(errors, covariance, comps)
+    series, d = nees_series(errors, covariance, comps)
     ok = np.isfinite(series)
     if not ok.any():
         return None
-    d = comps.size
     x = series[ok]
     anees = float(x.mean())
     n_eff = len(x) / integrated_autocorrelation_time(x)
@@ -431,7 +496,7 @@ def nees_summary(errors: np.ndarray, covariance: np.ndarray | None, confidence: 
     lo1, hi1 = stats.chi2.ppf([alpha / 2, 1.0 - alpha / 2], d)
     inside = float(np.mean((x >= lo1) & (x <= hi1)))
     return NeesSummary(tuple(STATE_LABELS[i] for i in comps), int(len(x)), anees, float(lower), float(upper),
-                       float(n_eff), inside, series)
+                       float(n_eff), inside, series, rank=d)
 
 
 @dataclass(frozen=True, slots=True)
@@ -502,7 +567,7 @@ SCORE_FIELDS.update({
     "outage_rms_drift_m": ("m", "RMS over outages of the maximum horizontal error inside each"),
     "outage_rms_drift_vertical_m": ("m", "RMS over outages of the maximum vertical error inside each"),
     "nees_components": ("", "covariance components used for NEES"),
-    "nees_dof": ("", "NEES dimension d"),
+    "nees_dof": ("", "NEES dimension d (the covariance's rank over nees_components when it claims a subspace)"),
     "anees": ("", "time-average NEES (d when consistent)"),
     "anees_lower": ("", "95 % lower bound of ANEES (chi2 with N_eff = N / tau)"),
     "anees_upper": ("", "95 % upper bound of ANEES"),

@@ -50,8 +50,8 @@ from .metrics import (
     aggregate,
     error_series,
     monte_carlo_nees,
-    nees,
     nees_components,
+    nees_series,
     score_episode,
 )
 
@@ -306,7 +306,8 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
             samples[name].append(series.horizontal_m[stride - 1::stride])
             if record.est_cov is not None and score.nees_dof:
                 comps = nees_components(record.est_cov)
-                nees_runs[name].append((len(comps), nees(series.error, record.est_cov, comps)[stride - 1::stride]))
+                x, d = nees_series(series.error, record.est_cov, comps)
+                nees_runs[name].append((d, x[stride - 1::stride]))
         del source
     result.mc_t = (np.arange(steps) + 1)[stride - 1::stride] * scenario.timing.nav_period_s
     for name in names:

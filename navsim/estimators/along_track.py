@@ -134,9 +134,11 @@ Position, tangent, heading, grade and cant come from the track at ``s``; velocit
 ``dp = t_n ds``, ``dv_n = t_n dv + v (dt_n/ds) ds``, ``psi = w_n ds`` with ``w_n`` the
 rotation of the track frame (heading, grade, cant) per metre of track in ENU axes. The
 cross-track position and velocity errors and the attitude errors other than through
-``ds`` are zero for a vehicle on its track (the map is taken as exact); to keep the
-matrix invertible for NEES, small floors are added on the diagonal: ``position_floor_m``
-(1 mm), ``velocity_floor_mps`` (1 mm/s). The attitude is the track's (heading, grade,
+``ds`` are zero for a vehicle on its track (the map is taken as exact), so the reported
+covariance has rank 2 (arc length and speed): it claims a 2-dimensional error subspace,
+and :func:`navsim.metrics.nees_summary` scores NEES there, against chi-square(2). Optional
+diagonal floors ``position_floor_m``, ``velocity_floor_mps`` (default 0) make it full rank
+(NEES then over all six components, where the cross-track floors dominate). The attitude is the track's (heading, grade,
 cant): a gyro-free filter cannot know how the body oscillates about it, so by default its
 covariance rows are ``nan`` ("not estimated"; metrics then leave attitude out of NEES).
 Give ``attitude_floor_rad`` (e.g. the expected body oscillation amplitude) to report the
@@ -410,8 +412,8 @@ class AlongTrackOptions:
     accel_psd_extra: float = 0.0
     cov_period_s: float | None = None
     table_step_m: float = 5.0
-    position_floor_m: float = 1e-3
-    velocity_floor_mps: float = 1e-3
+    position_floor_m: float = 0.0
+    velocity_floor_mps: float = 0.0
     attitude_floor_rad: float | None = None
     nis_divergence: float = 50.0
     divergence_epochs: int = 10
@@ -479,7 +481,8 @@ class AlongTrackFilter:
     table_step_m : float
         Map-table node spacing, m.
     position_floor_m, velocity_floor_mps : float
-        Diagonal floors of the position and velocity blocks of the 9 x 9 covariance.
+        Diagonal floors of the position and velocity blocks of the 9 x 9 covariance (default 0:
+        the covariance has rank 2, see Output).
     attitude_floor_rad : float or None
         None (default): attitude covariance nan (not estimated); a number: the
         track-mapped attitude covariance plus this floor (see the module docstring).
