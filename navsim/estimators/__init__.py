@@ -37,11 +37,15 @@ _REGISTRY: dict[str, str] = {
     "tc-ukf": "navsim.estimators.tightly:TightlyCoupledUkf",
     "along-track": "navsim.estimators.along_track:AlongTrackFilter",
     "full-state-ekf": "navsim.estimators.full_state:FullStateEkf",
+    "lc-ekf-filterpy": "navsim.estimators.filterpy_based:FilterpyLcEkf",
+    "tc-ekf-filterpy": "navsim.estimators.filterpy_based:FilterpyTcEkf",
 }
 
 # name -> (importable module it needs, the install hint shown when it is missing)
 _REQUIRES: dict[str, tuple[str, str]] = {
     "gnss-cv": ("filterpy", "pip install 'navsim-track[filters]'"),
+    "lc-ekf-filterpy": ("filterpy", "pip install 'navsim-track[filters]'"),
+    "tc-ekf-filterpy": ("filterpy", "pip install 'navsim-track[filters]'"),
 }
 
 # "package.module:Factory" or "path/to/file.py:Factory"

@@ -730,6 +730,10 @@ class ErrorStateIns:
         non-finite.
     """
 
+    # The Kalman arithmetic of a measurement update, (P, H, R, innovation) -> (dx, P_new,
+    # nis); replaceable per instance (navsim.estimators.filterpy_based hands it to filterpy).
+    kalman_update = staticmethod(joseph_update)
+
     def __init__(self, context, prior, noise: ImuNoise, *, interval_steps: int = 100, coning=None,
                  sculling=None, position=None, estimate_biases: bool = True) -> None:
         if int(interval_steps) != interval_steps or interval_steps < 1:
@@ -992,7 +996,7 @@ class ErrorStateIns:
         """
         P = self.covariance
         try:
-            dx, P_new, nis = joseph_update(P, H, R, innovation)
+            dx, P_new, nis = self.kalman_update(P, H, R, innovation)
         except np.linalg.LinAlgError:
             self.diverged = True
             self._start_interval(P)
@@ -1183,7 +1187,7 @@ class AuxStateIns(AuxBlocksIns):
             H = np.concatenate([H, np.zeros((H.shape[0], self.n_aux))], axis=1)
         P = self.full_covariance()
         try:
-            dx, P_new, nis = joseph_update(P, H, R, innovation)
+            dx, P_new, nis = self.kalman_update(P, H, R, innovation)
         except np.linalg.LinAlgError:
             self.diverged = True
             return math.nan, np.zeros(self.n_states)

@@ -905,11 +905,13 @@ class TightlyCoupledEkf(_TightlyCoupled):
     """
 
     kind = "ekf"
+    # (P, H, R, innovation) -> (dx, P_new, nis); navsim.estimators.filterpy_based replaces it
+    kalman_update = staticmethod(joseph_update)
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
         h, J = self.observation_model(sat_pos, sat_vel)
         # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
-        return joseph_update(P, -J, np.diag(R), z - h)
+        return self.kalman_update(P, -J, np.diag(R), z - h)
 
     def observation_model(self, sat_pos, sat_vel) -> tuple[np.ndarray, np.ndarray]:
         """Predicted observables h (2m,; m without Doppler) and J = dh/dx at the estimate.
