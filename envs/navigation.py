@@ -109,6 +109,8 @@ def resolve_scenario(scenario: str | Scenario, overrides: dict) -> Scenario:
 
 
 def _wrap(x: float) -> float:
+    if not math.isfinite(x):  # a non-finite action scores the reward cap, never raises
+        return x
     if x > math.pi:
         return x - _TWO_PI * math.floor((x + math.pi) / _TWO_PI)
     if x <= -math.pi:
@@ -252,10 +254,10 @@ class NavigationEnv(gym.Env):
             raise RuntimeError("NavigationEnv.step: call reset() first (the episode is over or not started)")
         i = self._i
         row = self._truth_rows[i]
-        if type(action) is np.ndarray:
+        if type(action) is np.ndarray and action.shape == (9,) and action.dtype.kind == "f":
             a = action.tolist()
         else:
-            a = self._action_list(action, k)
+            a = self._action_list(action, k)  # checks shape and dtype before any state changes
         # reward: minus the weighted error, local-level linearisation (module docstring)
         d_lon = a[1] * self._s_lon - row[1]
         if d_lon > math.pi or d_lon <= -math.pi:
@@ -307,7 +309,17 @@ class NavigationEnv(gym.Env):
         return float(e)
 
     def _action_list(self, action, k: int) -> list:
-        """The action as 9 floats; records the extras of an EstimateAction."""
+        """The action as 9 floats (checked first); records the extras of an EstimateAction."""
+        expected = "9 real numbers [lat, lon, h, vE, vN, vU, heading, pitch, roll] (an array of shape (9,))"
+        try:
+            arr = np.asarray(action)
+            if arr.dtype.kind not in "biuf" or arr.dtype.kind == "b":
+                raise TypeError
+            arr = arr.astype(float)
+        except (TypeError, ValueError):
+            raise ConfigError("action", expected, f"a value of type {type(action).__name__}") from None
+        if arr.shape != (9,) and not (arr.ndim == 2 and arr.shape[0] == 1 and arr.shape[1] == 9):
+            raise ConfigError("action", expected, f"an array of shape {arr.shape}")
         if isinstance(action, np.ndarray):
             extras = getattr(action, "extras", None)
             if extras is not None and self.tape is not None:

@@ -443,6 +443,14 @@ WHERE episodes.status = 'failed'
 """
 
 
+def _corrupt_database(path: Path, exc: Exception) -> NavsimError:
+    """The one error for a campaign database SQLite cannot use, with the recovery hint."""
+    return NavsimError(
+        f"campaign database {path.name}: not a usable navsim campaign database ({type(exc).__name__}: {exc}); "
+        f"move it aside (e.g. rename it to {path.name}.corrupt) and run the campaign again to start a new one, "
+        f"or try `sqlite3 {path.name} .recover` to salvage its rows")
+
+
 def open_database(path: str | Path, divergence_threshold_m: float | None = None) -> sqlite3.Connection:
     """Open (create) the campaign database; WAL journal, so a reader never blocks the writer.
 
@@ -452,10 +460,14 @@ def open_database(path: str | Path, divergence_threshold_m: float | None = None)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     con = sqlite3.connect(str(path), timeout=30.0)
-    con.execute("PRAGMA journal_mode=WAL")
-    con.execute("PRAGMA synchronous=NORMAL")
-    with con:
-        con.executescript(_SCHEMA)
+    try:
+        con.execute("PRAGMA journal_mode=WAL")
+        con.execute("PRAGMA synchronous=NORMAL")
+        with con:
+            con.executescript(_SCHEMA)
+    except sqlite3.DatabaseError as exc:
+        con.close()
+        raise _corrupt_database(path, exc) from None
     if divergence_threshold_m is not None:
         row = con.execute("SELECT value FROM meta WHERE key = 'divergence_threshold_m'").fetchone()
         if row is None:
@@ -659,10 +671,14 @@ def run_campaign(spec: CampaignSpec, *, scheduler=None, workers: int | None = No
 def read_rows(database: str | Path, spec: CampaignSpec | None = None) -> list[dict]:
     """Rows of the database as dicts (``scores`` / ``outages`` decoded, ``samples`` as
     a float array); with ``spec`` only the episodes of that campaign."""
+    if not Path(database).is_file():
+        raise ConfigError("campaign.database", "an existing campaign database", Path(database).name)
     con = sqlite3.connect(str(database), timeout=30.0)
     con.row_factory = sqlite3.Row
     try:
         rows = [dict(r) for r in con.execute("SELECT * FROM episodes ORDER BY id")]
+    except sqlite3.DatabaseError as exc:
+        raise _corrupt_database(Path(database), exc) from None
     finally:
         con.close()
     for r in rows:

@@ -99,14 +99,14 @@ def _cmd_show(args) -> int:
 def _cmd_simulate(args) -> int:
     from tqdm import tqdm
 
-    from .io import write_csv, write_npz
+    from .io import check_output_dir, write_csv, write_npz
     from .simulator import Simulator
 
     scenario = _scenario(args)
     sim = Simulator(scenario)
     sim.reset(args.seed)
     out = Path(args.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    check_output_dir(out.parent)  # before the episode is simulated
     fmt = args.format or ("csv" if out.suffix == ".csv" else "npz")
     total = scenario.timing.steps
     bar = tqdm(total=total, unit="step", disable=args.quiet or None, desc=f"simulate {scenario.name}", file=sys.stderr)
@@ -192,10 +192,39 @@ def _fmt(value) -> str:
     return str(value)
 
 
+def _seed(text: str) -> int:
+    """argparse type: a seed is an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one-line error of the rest of the command (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    parser = argparse.ArgumentParser(prog="navsim", description=__doc__.split("\n")[0])
+    parser = _Parser(prog="navsim", description=__doc__.split("\n")[0])
     parser.add_argument("--version", action="version", version=f"navsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -213,10 +242,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="write truth and measurements of one episode")
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("-o", "--output", required=True, help="output file (.npz or .csv)")
     p.add_argument("--format", choices=("npz", "csv"), help="default: from the file suffix")
-    p.add_argument("--chunk", type=int, default=10_000, help="steps generated per chunk (memory bound)")
+    p.add_argument("--chunk", type=_positive_int, default=10_000, help="steps generated per chunk (memory bound)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.add_argument("--plot", default=None, metavar="PNG", help="also write a plot of the episode")
@@ -246,12 +275,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def expected_failure(exc: BaseException) -> str | None:
+    """The one-line message of an expected failure (bad input, I/O, a corrupt file), or
+    None for anything else (a bug: its traceback is kept). Messages name the file and the
+    reason, never the file's contents."""
+    import sqlite3
+    import zipfile
+
+    if isinstance(exc, NavsimError):
+        return str(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return f"a file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
+    if isinstance(exc, OSError):
+        where = f": {Path(exc.filename).name}" if getattr(exc, "filename", None) else ""
+        return f"{exc.strerror or type(exc).__name__}{where}"
+    if isinstance(exc, sqlite3.DatabaseError):
+        return f"a database cannot be used ({exc})"
+    if isinstance(exc, (zipfile.BadZipFile, EOFError)):
+        return f"a file is truncated or not the expected archive ({type(exc).__name__})"
+    if isinstance(exc, MemoryError):
+        return "not enough memory for these settings (fewer steps per chunk, a longer IMU period or a shorter episode)"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a bad argument (one line, status 2)
+        return exc.code if isinstance(exc.code, int) else 2
     try:
         return args.func(args)
-    except NavsimError as exc:
-        print(f"navsim: error: {exc}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("navsim: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        message = expected_failure(exc)
+        if message is None:
+            raise
+        print(f"navsim: error: {' '.join(message.split())}", file=sys.stderr)
         return 2
 
 

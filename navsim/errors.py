@@ -20,6 +20,7 @@ __all__ = [
     "check_positive",
     "check_nonnegative",
     "check_multiple",
+    "file_value",
 ]
 
 
@@ -98,3 +99,24 @@ def check_multiple(field: str, value: float, base: float, base_name: str) -> int
     if count < 1 or abs(ratio - count) > 1e-9 * max(1.0, ratio):
         raise ConfigError(field, f"a whole multiple of {base_name}={base!r}", value)
     return int(count)
+
+
+def file_value(value: Any) -> Any:
+    """What an error may show of a value read from a data file: numbers as they are, any
+    text or structure only by its kind and size (a file's contents are never echoed: the
+    file may not be what the user thinks, e.g. a system file named by mistake)."""
+    if isinstance(value, (bool, int, float)) or value is None:
+        return value
+    if isinstance(value, (str, bytes)):
+        return _Described(f"<text of {len(value)} characters>")
+    try:
+        return _Described(f"<{type(value).__name__} of {len(value)} items>")
+    except TypeError:
+        return _Described(f"<{type(value).__name__}>")
+
+
+class _Described(str):
+    """A description shown as is (no quotes) in an error message."""
+
+    def __repr__(self) -> str:
+        return str(self)

@@ -42,7 +42,9 @@ pseudorange_rate_mps, elevation, azimuth, sat_x, sat_y, sat_z, sat_vx, sat_vy, s
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import os
 import tempfile
 import zipfile
 from pathlib import Path
@@ -50,7 +52,7 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["chunk_arrays", "write_npz", "write_csv", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
+__all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "check_output_dir", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
 
 STEP_KEYS = (
     "t", "s", "speed", "accel_along", "lat", "lon", "h", "velocity_n", "heading", "pitch", "roll",
@@ -98,11 +100,56 @@ def chunk_arrays(chunk, n_sats: int | None = None) -> dict[str, np.ndarray]:
     return out
 
 
+@contextlib.contextmanager
+def atomic_output(path: str | Path, mode: str = "wb", **open_kw):
+    """Open a temporary file beside ``path`` for writing; on success it is flushed to disk
+    and renamed onto ``path`` (``os.replace``, atomic on POSIX and Windows), on any
+    failure (an exception, a full disk) it is removed. A reader, or a killed writer,
+    therefore sees the previous file or the new one whole, never a half-written one
+    (a kill can leave a ``.<name>.*.part`` file beside it, never the target)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **open_kw) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def check_output_dir(folder: str | Path) -> Path:
+    """Create ``folder`` if needed and prove it writable before any work is done: a small
+    probe file is written, flushed to disk and removed (a read-only or full file system,
+    or a file in the way, raises :class:`OSError` here rather than after the computing)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, probe = tempfile.mkstemp(prefix=".navsim-probe-", dir=folder)
+    try:
+        os.write(fd, b"\0" * 4096)
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+        os.unlink(probe)
+    return folder
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write a text file through :func:`atomic_output` (UTF-8)."""
+    with atomic_output(path, "w", encoding="utf-8", newline="") as fh:
+        fh.write(text)
+    return Path(path)
+
+
 def write_npz(path: str | Path, chunks: Iterable, meta: dict | None = None, n_sats: int | None = None) -> Path:
     """Stream chunks into an NPZ file without holding the episode in memory.
 
     Each array is appended to a raw temporary file chunk by chunk; at the end every one
-    is copied into the zip member behind a ``.npy`` header with the final shape.
+    is copied into the zip member behind a ``.npy`` header with the final shape. The zip
+    is written beside ``path`` and renamed into place (:func:`atomic_output`).
     """
     path = Path(path)
     with tempfile.TemporaryDirectory(prefix="navsim-") as tmp:
@@ -119,7 +166,7 @@ def write_npz(path: str | Path, chunks: Iterable, meta: dict | None = None, n_sa
         finally:
             for f in files.values():
                 f.close()
-        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        with atomic_output(path) as out, zipfile.ZipFile(out, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
             for key, (dtype, tail, count) in specs.items():
                 with zf.open(f"{key}.npy", "w", force_zip64=True) as member:
                     np.lib.format.write_array_header_1_0(
@@ -145,10 +192,11 @@ def _columns(key: str, arr: np.ndarray) -> list[str]:
 
 
 def write_csv(path: str | Path, chunks: Iterable, n_sats: int | None = None) -> tuple[Path, Path]:
-    """Stream chunks into ``path`` (per step) and ``<stem>_gnss.csv`` (per epoch and channel)."""
+    """Stream chunks into ``path`` (per step) and ``<stem>_gnss.csv`` (per epoch and channel),
+    each through :func:`atomic_output` (renamed into place when complete)."""
     path = Path(path)
     gnss_path = path.with_name(path.stem + "_gnss.csv")
-    with open(path, "w", newline="") as fs, open(gnss_path, "w", newline="") as fg:
+    with atomic_output(path, "w", newline="") as fs, atomic_output(gnss_path, "w", newline="") as fg:
         steps, gnss = csv.writer(fs), csv.writer(fg)
         header_done = False
         gnss.writerow(["t", "step", "prn", "valid", "pseudorange_m", "pseudorange_rate_mps", "elevation",

@@ -462,6 +462,8 @@ def _json_float(x: float):
 
 def write_bench(result: BenchResult, out_dir: str | Path, plots: bool = True) -> list[Path]:
     """Write bench.md, bench.csv, runs.csv, bench.json and the plots into ``out_dir``."""
+    from .io import write_text_atomic
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -469,7 +471,7 @@ def write_bench(result: BenchResult, out_dir: str | Path, plots: bool = True) ->
                         ("runs.csv", bench_runs_csv(result)),
                         ("bench.json", json.dumps(bench_json(result), indent=1) + "\n")):
         path = out / fname
-        path.write_text(text, encoding="utf-8")
+        write_text_atomic(path, text)  # whole or not at all (renamed into place)
         paths.append(path)
     if plots:
         from .plots import plot_bench_errors, plot_mc_nees, plot_outage_drifts
@@ -527,6 +529,10 @@ def cmd_bench(args) -> int:
     names = _check_estimators(args.estimators.split(","))
     seeds = parse_seeds(args.seeds)
     options = parse_options(args.option or [], names)
+    if args.out:
+        from .io import check_output_dir
+
+        check_output_dir(args.out)  # before any episode is computed
     bar = _bar(scenario.timing.steps * len(seeds) * len(names), args.quiet, f"bench {scenario.name}")
     try:
         result = bench(scenario, names, seeds, options, method=args.interval,

@@ -132,6 +132,9 @@ class TrackConfig:
     def __post_init__(self):
         if bool(self.bundled) == bool(self.file):
             raise ConfigError("track", "exactly one of track.bundled or track.file", {"bundled": self.bundled, "file": self.file})
+        if self.bundled and (any(c in self.bundled for c in "/\\:") or self.bundled.startswith(".")):
+            raise ConfigError("track.bundled", "the name of a bundled track, without separators (files go in track.file)",
+                              self.bundled)
         if self.cant not in ("track", "none", "design"):
             raise ConfigError("track.cant", "one of 'track', 'none', 'design'", self.cant)
 
@@ -353,7 +356,16 @@ class Scenario:
             if source and not exc.source:
                 raise ConfigError(exc.field, exc.expected, exc.got, source=source) from None
             raise
-        return dataclasses.replace(scenario, base_dir=base_dir)
+        from .validation import validate_scenario
+
+        scenario = dataclasses.replace(scenario, base_dir=base_dir)
+        try:
+            validate_scenario(scenario)  # the cross-section and physical checks
+        except ConfigError as exc:
+            if source and not exc.source:
+                raise ConfigError(exc.field, exc.expected, exc.got, source=source) from None
+            raise
+        return scenario
 
     def to_dict(self) -> dict:
         """Nested dict of plain values (TOML-ready); ``from_dict(to_dict())`` round-trips."""
@@ -422,6 +434,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             raise ConfigError("scenario", f"a bundled scenario {list_scenarios()} or a .toml path", str(name_or_path))
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ConfigError("scenario", "a UTF-8 text file", f"byte 0x{exc.object[exc.start]:02x} at offset {exc.start}",
+                          source=path.name) from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError("scenario", "valid TOML", f"{exc}", source=str(path)) from None
     return Scenario.from_dict(data, source=path.name, base_dir=str(path.parent))

@@ -53,6 +53,7 @@ from .motion import (
 from .scenario import Scenario
 from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
 from .truthgen import TruthGenerator
+from .validation import check_seed, check_steps, validate_scenario
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import odometer as odometer_mod
@@ -289,6 +290,7 @@ class Simulator:
     """
 
     def __init__(self, scenario: Scenario):
+        validate_scenario(scenario)  # the one validation pass, before any work
         self.scenario = scenario
         self.timing = scenario.timing
         self.earth = earth_model(scenario.earth)
@@ -342,7 +344,7 @@ class Simulator:
 
     def reset(self, seed: int | None = None) -> Start:
         """Start a new episode: fresh random streams, initial sensor states, the prior."""
-        seq = np.random.SeedSequence(seed)
+        seq = np.random.SeedSequence(check_seed(seed))
         self.seed_entropy = seq.entropy
         self.rngs = dict(zip(STREAMS, (np.random.Generator(np.random.PCG64(s)) for s in seq.spawn(len(STREAMS)))))
         self._step = 0
@@ -402,6 +404,8 @@ class Simulator:
     # -- generation --------------------------------------------------------------------
     def advance(self, n_steps: int = 1) -> Chunk:
         """Generate the next ``n_steps`` navigation steps (fewer at the episode's end)."""
+        if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
+            raise ConfigError("n_steps", "a positive whole number of navigation steps", n_steps)
         return _generate([self], n_steps).member(0)
 
     def step(self, buffer_steps: int = 1000) -> tuple[Chunk, int]:
@@ -421,7 +425,7 @@ class Simulator:
         if self._buffer is None or self._buffer_pos >= len(self._buffer):
             if self._served >= self.timing.steps:
                 raise RuntimeError("the episode is over: call reset()")
-            self._buffer = self.advance(buffer_steps)
+            self._buffer = self.advance(check_steps(buffer_steps, self.scenario, "buffer_steps"))
             self._buffer_pos = 0
         i = self._buffer_pos
         self._buffer_pos += 1
@@ -436,6 +440,7 @@ class Simulator:
 
     def chunks(self, chunk_steps: int = 10_000) -> Iterator[Chunk]:
         """Iterate over the rest of the episode in chunks of ``chunk_steps`` steps."""
+        chunk_steps = check_steps(chunk_steps, self.scenario, "chunk_steps")
         self._require_reset()
         while self._step < self.timing.steps:
             yield self.advance(chunk_steps)

@@ -929,6 +929,17 @@ class SplineTrack(_ArcLengthTrack):
                 f"track {name!r}: waypoints {i} and {i + 1} coincide (distance {chord[i]:.3g} m < 1 mm); "
                 "remove duplicate consecutive points"
             )
+        if lat.size < MIN_SPLINE_WAYPOINTS:
+            raise TrackError(f"track {name!r}: a spline track needs at least {MIN_SPLINE_WAYPOINTS} waypoints "
+                             f"(its third derivative is used), got {lat.size}")
+        d = np.diff(xyz, axis=0) / chord[:, None]
+        turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", d[:-1], d[1:]), -1.0, 1.0)))
+        bad = np.flatnonzero(turn > MAX_WAYPOINT_TURN_DEG)
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise TrackError(f"track {name!r}: the track turns by {turn[i - 1]:.0f} deg at waypoint {i} "
+                             f"(at most {MAX_WAYPOINT_TURN_DEG:g} deg between consecutive chords): "
+                             "it doubles back on itself")
         u = np.concatenate([[0.0], np.cumsum(chord)])
         self.lat_ref, self.lon_ref = float(lat[0]), float(lon[0])
         r_n, r_e = earth.radii(np.array(self.lat_ref))
@@ -980,6 +991,12 @@ class SplineTrack(_ArcLengthTrack):
     def waypoint_s(self) -> np.ndarray:
         """Arc length at each waypoint (on the smoothed curve: at its parameter), m."""
         return self._s_of_u(self.waypoint_u)
+
+
+MIN_SPLINE_WAYPOINTS = 4
+"""Waypoints a spline track needs: degree >= 3, since its third derivative is used."""
+MAX_WAYPOINT_TURN_DEG = 150.0
+"""Largest turn between consecutive waypoint chords; more is a track doubling back."""
 
 
 def _check_waypoints(lat: ArrayLike, lon: ArrayLike, h: ArrayLike, name: str):
@@ -1306,6 +1323,9 @@ def load_bundled_track(name: str, *, earth: EarthModel | None = None):
     """
     from . import trackio
 
+    if name not in list_bundled_tracks():  # a name only: no separators, no paths outside the package
+        raise ConfigError("track.bundled", f"the name of a bundled track, one of {list_bundled_tracks()} "
+                                           "(files go in track.file)", name)
     for suffix in _BUNDLED_SUFFIXES:
         entry = _bundled_dir().joinpath(name + suffix)
         if entry.is_file():

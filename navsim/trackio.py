@@ -57,7 +57,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .earth import EarthModel, earth_model
-from .errors import ConfigError, TrackError
+from .errors import ConfigError, TrackError, file_value
 from .track import CantModel, PolynomialTrack, SplineTrack, TrackSegment
 
 try:  # Python >= 3.11
@@ -112,7 +112,7 @@ def _number(value: Any, where: str, source: str, what: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ConfigError(where, f"a number ({what})", value, source) from None
+        raise ConfigError(where, f"a number ({what})", file_value(value), source) from None
     if not math.isfinite(number):
         raise ConfigError(where, f"a finite number ({what})", value, source)
     return number
@@ -171,7 +171,7 @@ def read_geojson(path: str | os.PathLike) -> Waypoints:
     labels = [f"coordinates[{i}]" for i in range(n)]
     for i, pos in enumerate(coords):
         if not isinstance(pos, (list, tuple)) or len(pos) not in (2, 3):
-            raise ConfigError(labels[i], "[lon, lat] or [lon, lat, h]", pos, source)
+            raise ConfigError(labels[i], "[lon, lat] or [lon, lat, h]", file_value(pos), source)
         dims.add(len(pos))
         lon[i] = _number(pos[0], labels[i] + "[0]", source, "longitude, deg")
         lat[i] = _number(pos[1], labels[i] + "[1]", source, "latitude, deg")
@@ -179,10 +179,10 @@ def read_geojson(path: str | os.PathLike) -> Waypoints:
     if len(dims) > 1:
         raise ConfigError("geometry.coordinates", "all positions with a height, or none", "a mix", source)
     if not isinstance(properties, dict):
-        raise ConfigError("properties", "an object", properties, source)
+        raise ConfigError("properties", "an object", file_value(properties), source)
     segments = properties.get("segments", [])
     if not isinstance(segments, list):
-        raise ConfigError("properties.segments", "a list of segment objects", segments, source)
+        raise ConfigError("properties.segments", "a list of segment objects", file_value(segments), source)
     props = {k: v for k, v in properties.items() if k != "segments"}
     return _finish(lat, lon, h, labels, source, segments, props)
 
@@ -283,7 +283,7 @@ def read_csv(path: str | os.PathLike) -> Waypoints:
         if found:
             cols[key] = found[0]
         elif key != "h":
-            raise ConfigError(f"line {lines[0][0]} (header)", f"a column named one of {list(names)}", rows[0], source)
+            raise ConfigError(f"line {lines[0][0]} (header)", f"a column named one of {list(names)}", file_value(rows[0]), source)
     n = len(rows) - 1
     lat, lon, h = np.empty(n), np.empty(n), np.zeros(n)
     labels = []
@@ -351,10 +351,10 @@ def track_from_waypoints(wp: Waypoints, *, earth: EarthModel | None = None, smoo
     for i, g in enumerate(wp.segments):
         where = f"segments[{i}]"
         if not isinstance(g, dict):
-            raise ConfigError(where, "an object with kind and s_start_m/s_end_m or start_index/end_index", g, wp.source)
+            raise ConfigError(where, "an object with kind and s_start_m/s_end_m or start_index/end_index", file_value(g), wp.source)
         kind = g.get("kind")
         if not isinstance(kind, str) or not kind:
-            raise ConfigError(where + ".kind", "a non-empty string", kind, wp.source)
+            raise ConfigError(where + ".kind", "a non-empty string", file_value(kind), wp.source)
         if "start_index" in g or "end_index" in g:
             if waypoint_s is None:
                 waypoint_s = track.waypoint_s

@@ -78,7 +78,7 @@ from typing import Sequence
 import numpy as np
 
 from ..earth import WGS84, EarthModel, mat_en
-from ..errors import ConfigError, check_nonnegative
+from ..errors import ConfigError, check_nonnegative, file_value
 from ._common import frozen_array
 
 # The receiver's own fixes live receiver-side (the estimators use them too); re-exported here.
@@ -385,22 +385,22 @@ def load_yuma(
             continue
         if current is None:
             raise ConfigError(
-                f"line {number}", "a '******** Week N almanac for PRN-xx' header", line, source
+                f"line {number}", "a '******** Week N almanac for PRN-xx' header", file_value(line), source
             )
         label, sep, value = line.partition(":")
         key = _yuma_key(label) if sep else None
         if key is None:
-            raise ConfigError(f"line {number}", "a YUMA 'label: value' line", line, source)
+            raise ConfigError(f"line {number}", "a YUMA 'label: value' line", file_value(line), source)
         try:
             number_value = float(value.strip())
         except ValueError:
             raise ConfigError(
-                f"line {number} ({label.strip()})", "a number", value.strip(), source
+                f"line {number}", "a number", file_value(value.strip()), source
             ) from None
         if not np.isfinite(number_value):
-            raise ConfigError(f"line {number} ({label.strip()})", "a finite number", value, source)
+            raise ConfigError(f"line {number}", "a finite number", file_value(value), source)
         if key in current:
-            raise ConfigError(f"line {number}", f"one '{label.strip()}' per record", line, source)
+            raise ConfigError(f"line {number}", "one value of each label per record", file_value(line), source)
         current[key] = number_value
     if not records:
         raise ConfigError("almanac", "at least one YUMA record", str(path.name), source)

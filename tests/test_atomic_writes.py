@@ -1,0 +1,72 @@
+"""Nothing half-written (issue 16): outputs go to a temporary file beside the target and
+are renamed into place, so a killed or failed `navsim simulate` leaves the previous file
+intact (kill tests with SIGKILL in the middle of the write)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from navsim.cli import main
+from navsim.io import atomic_output
+
+KILLER = """
+import os, signal, sys
+import numpy as np
+import navsim.io as nio
+mode = sys.argv[1]
+if mode == "npz":  # die while the zip is being written (after the first array's header)
+    original = np.lib.format.write_array_header_1_0
+    calls = []
+    def header(*a, **k):
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return original(*a, **k)
+    np.lib.format.write_array_header_1_0 = header
+else:  # die after the first chunk's rows were written
+    original = nio.chunk_arrays
+    calls = []
+    def arrays(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return original(*a, **k)
+    nio.chunk_arrays = arrays
+from navsim.cli import main
+main(sys.argv[2:])
+"""
+
+
+@pytest.mark.parametrize("fmt", ["npz", "csv"])
+def test_simulate_killed_during_the_write_keeps_the_previous_file(tmp_path, fmt):
+    out = tmp_path / f"episode.{fmt}"
+    assert main(["simulate", "paper-2012", "--set", "timing.duration_s=2", "-q", "-o", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    argv = ["simulate", "paper-2012", "--set", "timing.duration_s=4", "--seed", "5", "--chunk", "100", "-q",
+            "-o", str(out)]
+    proc = subprocess.run([sys.executable, "-c", KILLER, fmt, *argv], capture_output=True, timeout=300)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr.decode()[-2000:]
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.name.endswith(".part")}
+    assert after == before  # the previous file(s), byte for byte; at most a .part beside them
+    if fmt == "npz":
+        with np.load(out) as data:
+            assert data["t"].shape == (200,)
+
+
+def test_failed_write_removes_its_temporary_and_keeps_the_target(tmp_path):
+    target = tmp_path / "x.bin"
+    target.write_bytes(b"previous")
+    with pytest.raises(OSError):
+        with atomic_output(target) as fh:
+            fh.write(b"half")
+            raise OSError(28, "No space left on device")  # what a full disk raises
+    assert target.read_bytes() == b"previous"
+    assert [p.name for p in tmp_path.iterdir()] == ["x.bin"]
+    with atomic_output(target) as fh:
+        fh.write(b"new")
+    assert target.read_bytes() == b"new" and [p.name for p in tmp_path.iterdir()] == ["x.bin"]

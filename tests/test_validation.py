@@ -1,0 +1,197 @@
+"""One clear error for every bad input (issue 16): the CLI answers each case of bad
+input, fault or meaningless setting with exit status 2 and one line naming the field,
+the expectation and the value, never a traceback and never a file's contents; a
+property-based test generates scenario files and CLI arguments."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pytest
+
+from navsim.cli import main
+from navsim.errors import ConfigError
+from navsim.scenario import load_scenario
+from navsim.simulator import Simulator
+from navsim.validation import check_seed, check_steps, validate_scenario
+
+BASE = 'name = "t"\n[timing]\nduration_s = 2.0\n[track]\nbundled = "paper-2012"\n'
+SECRET = "s3cret-line-that-must-never-be-echoed"
+
+
+def _run(capsys, argv):
+    code = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err
+
+
+def _one_clear_line(code, err):
+    assert code == 2, (code, err)
+    assert len(err) == 1 and "error:" in err[0] and "Traceback" not in err[0], err
+    assert SECRET not in err[0]
+
+
+def _scenario_file(tmp_path, text, name="s.toml"):
+    path = tmp_path / name
+    if isinstance(text, bytes):
+        path.write_bytes(text)
+    else:
+        path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+CASES = {
+    "not utf-8": lambda d: ["show", _scenario_file(d, b'name = "\xff\xfe"\n')],
+    "frequency 0": lambda d: ["show", _scenario_file(d, BASE + "[motion]\noscillations = [{angle='roll', frequency_hz=0.0, amplitude_deg=1.0}]\n")],
+    "gyro string": lambda d: ["show", _scenario_file(d, BASE + '[imu]\ngyro = "abc"\n')],
+    "2-point track": lambda d: (d.joinpath("two.csv").write_text("lat_deg,lon_deg\n55.0,37.0\n55.001,37.0\n"),
+                                ["simulate", _scenario_file(d, 'name="t"\n[timing]\nduration_s=2.0\n[track]\nfile="two.csv"\n'),
+                                 "-o", str(d / "o.npz"), "-q"])[1],
+    "track doubling back": lambda d: (d.joinpath("b.csv").write_text(
+        "lat_deg,lon_deg\n55.0,37.0\n55.01,37.0\n55.0,37.0001\n55.01,37.0002\n"),
+        ["simulate", _scenario_file(d, 'name="t"\n[timing]\nduration_s=2.0\n[track]\nfile="b.csv"\n'), "-o", str(d / "o.npz"), "-q"])[1],
+    "seed -1": lambda d: ["simulate", "paper-2012", "--set", "timing.duration_s=2", "--seed", "-1", "-o", str(d / "o.npz")],
+    "run seed -1": lambda d: ["run", "paper-2012", "--set", "timing.duration_s=2", "--seed", "-1", "--estimator", "ins-only"],
+    "chunk 0": lambda d: ["simulate", "paper-2012", "--set", "timing.duration_s=2", "--chunk", "0", "-o", str(d / "o.npz")],
+    "output under a file": lambda d: (d.joinpath("f").write_text("x"),
+                                      ["simulate", "paper-2012", "--set", "timing.duration_s=2", "-o", str(d / "f" / "o.npz"), "-q"])[1],
+    "1 kHz oscillation on a 100 Hz IMU": lambda d: ["show", _scenario_file(d, BASE + "[motion]\noscillations = [{angle='roll', frequency_hz=1000.0, amplitude_deg=0.1}]\n")],
+    "outage window [-5, 4]": lambda d: ["simulate", _scenario_file(d, BASE + "[outages]\nwindows_s = [[-5.0, 4.0]]\n"), "-o", str(d / "o.npz"), "-q"],
+    "bundled ../": lambda d: ["show", "paper-2012", "--set", "track.bundled=../../../etc/x"],
+    "bundled absolute": lambda d: ["show", "paper-2012", "--set", f"track.bundled={d}/x"],
+    "yuma: a file that is not an almanac": lambda d: (d.joinpath("p").write_text(SECRET + ":x:0:0\n"),
+        ["simulate", "paper-2012", "--set", f"gnss.constellation=yuma:{d / 'p'}", "--set", "timing.duration_s=2", "-o", str(d / "o.npz"), "-q"])[1],
+    "csv track with a text cell": lambda d: (d.joinpath("c.csv").write_text(
+        f"lat_deg,lon_deg\n55.0,37.0\n{SECRET},37.0\n55.002,37.0\n55.003,37.0\n"),
+        ["simulate", _scenario_file(d, 'name="t"\n[timing]\nduration_s=2.0\n[track]\nfile="c.csv"\n'), "-o", str(d / "o.npz"), "-q"])[1],
+    "unknown key": lambda d: ["show", "paper-2012", "--set", "timing.nope=1"],
+    "invalid TOML": lambda d: ["show", _scenario_file(d, "name = [\n")],
+    "missing file": lambda d: ["show", str(d / "nope.toml")],
+    "unknown option": lambda d: ["simulate", "--no-such-option"],
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_input_is_one_line_and_exit_2(case, tmp_path, capsys):
+    _one_clear_line(*_run(capsys, CASES[case](tmp_path)))
+
+
+def test_corrupt_campaign_database_names_the_file_and_a_recovery(tmp_path, capsys):
+    spec = tmp_path / "c.toml"
+    spec.write_text('[campaign]\nname="c"\nseeds="0:1"\n[overrides]\ntiming={duration_s=2.0}\n'
+                    '[[scenarios]]\nname="paper-2012"\n[[estimators]]\nname="ins-only"\n', encoding="utf-8")
+    (tmp_path / "c.sqlite").write_bytes(SECRET.encode() * 50)
+    code, err = _run(capsys, ["campaign", str(spec), "--workers", "0", "--no-plots"])
+    _one_clear_line(code, err)
+    assert "c.sqlite" in err[0] and "move it aside" in err[0]
+    with pytest.raises(sqlite3.DatabaseError):  # the file was left as it was, for recovery
+        sqlite3.connect(str(tmp_path / "c.sqlite")).execute("SELECT * FROM episodes")
+
+
+def test_validation_pass_is_used_by_the_python_api_before_any_work():
+    sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}})
+    over = {"motion": {"oscillations": [{"angle": "roll", "frequency_hz": 50.0, "amplitude_deg": 0.1}]}}
+    with pytest.raises(ConfigError, match=r"motion.oscillations\[0\].frequency_hz.*Nyquist.*50 Hz"):
+        sc.with_overrides(over)  # scenario building runs the pass ...
+    import dataclasses
+
+    from navsim.scenario import OscillationConfig
+
+    built = dataclasses.replace(sc, motion=dataclasses.replace(sc.motion, oscillations=(
+        OscillationConfig("roll", 50.0, amplitude_deg=0.1),)))
+    with pytest.raises(ConfigError, match="Nyquist"):
+        Simulator(built)  # ... and so does the simulator, for scenarios built field by field
+    validate_scenario(sc.with_overrides({"motion": {"oscillations": [
+        {"angle": "roll", "frequency_hz": 49.0, "amplitude_deg": 0.1}]}}))  # just below: accepted
+    with pytest.raises(ConfigError, match="seed"):
+        check_seed(-1)
+    assert check_seed(None) is None and check_seed(7) == 7
+    with pytest.raises(ConfigError, match="chunk"):
+        check_steps(0, sc)
+    sim = Simulator(sc)
+    sim.reset(0)
+    with pytest.raises(ConfigError, match="chunk_steps"):
+        next(sim.chunks(0))
+    with pytest.raises(ConfigError, match="n_steps"):
+        sim.advance(0)
+
+
+def test_steps_beyond_the_machine_memory_are_refused(monkeypatch):
+    import navsim.validation as v
+
+    sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}})
+    monkeypatch.setattr(v, "available_memory_bytes", lambda: 1000)  # a machine with 1 kB free
+    with pytest.raises(ConfigError, match="timing.imu_period_s.*GiB"):
+        validate_scenario(sc)
+    monkeypatch.setattr(v, "available_memory_bytes", lambda: 10 * v._step_bytes(sc))
+    validate_scenario(sc)
+    with pytest.raises(ConfigError, match="chunk.*fewer steps"):
+        check_steps(100, sc)
+    assert check_steps(5, sc) == 5
+
+
+# ----------------------------------------------------------------------- property-based
+hypothesis = pytest.importorskip("hypothesis")
+st = hypothesis.strategies
+
+_numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64), st.integers(-10**6, 10**6),
+                     st.sampled_from([0, 0.0, -1.0, 1e-9, 1e9, 0.005, 0.01, 0.1, 1.0]))
+_values = st.one_of(_numbers, st.booleans(), st.text(max_size=8), st.lists(_numbers, max_size=3))
+_fields = st.sampled_from([
+    "timing.tick_s", "timing.imu_period_s", "timing.nav_period_s", "timing.gnss_period_s", "timing.duration_s",
+    "motion.speed_mps", "motion.start_s_m", "motion.profile", "imu.preset", "imu.orders", "imu.quadrature_nodes",
+    "gnss.constellation", "gnss.preset", "gnss.lever_arm_m", "gnss.epoch_phase_deg", "outages.windows_s",
+    "initial.position_m", "earth", "track.bundled", "track.cant", "odometer.enabled", "nonsense.key",
+])
+
+
+def _toml_value(value) -> str:
+    import tomli_w
+
+    return tomli_w.dumps({"v": value})[4:].strip()
+
+
+@hypothesis.settings(max_examples=40, deadline=None, derandomize=True,
+                     suppress_health_check=list(hypothesis.HealthCheck))
+@hypothesis.given(st.lists(st.tuples(_fields, _values), min_size=1, max_size=3),
+                  st.sampled_from(["show", "simulate", "run"]), st.integers(-3, 3), st.sampled_from([None, 0, 1, 50]))
+def test_generated_scenarios_run_or_exit_2_with_one_line(tmp_path_factory, capsys, fields, command, seed, chunk):
+    """Generated scenario files (1..3 fields set to arbitrary numbers, strings, lists) and
+    CLI arguments: every run ends with status 0, or 2 with one error line; never a
+    traceback (an unexpected exception fails the test)."""
+    d = tmp_path_factory.mktemp("h")
+    lines = ['name = "h"', "[timing]", "duration_s = 1.0", "[track]", 'bundled = "paper-2012"']
+    sections: dict = {}
+    for key, value in fields:
+        section, _, name = key.rpartition(".")
+        try:
+            text = _toml_value(value)
+        except (TypeError, ValueError):  # NaN/inf have TOML spellings; anything else is skipped
+            continue
+        sections.setdefault(section, {})[name] = text
+    body = []
+    for section, items in sections.items():
+        if section == "":
+            for name, text in items.items():
+                lines.insert(1, f"{name} = {text}")
+            continue
+        if section in ("timing", "track"):
+            idx = lines.index(f"[{section}]") + 1
+            for name, text in items.items():
+                lines.insert(idx, f"{name} = {text}")
+            continue
+        body.append(f"[{section}]")
+        body += [f"{name} = {text}" for name, text in items.items()]
+    path = d / "s.toml"
+    path.write_text("\n".join(lines + body) + "\n", encoding="utf-8")
+    argv = [command, str(path)]
+    if command == "simulate":
+        argv += ["-o", str(d / "o.npz"), "-q", "--seed", str(seed)] + ([] if chunk is None else ["--chunk", str(chunk)])
+    elif command == "run":
+        argv += ["--estimator", "ins-only", "--seed", str(seed)]
+    hypothesis.note(path.read_text())
+    code = main(argv)
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert code in (0, 2), code
+    if code == 2:
+        assert len(err) == 1 and "error:" in err[0], err
