@@ -75,6 +75,7 @@ NOISE_HOOKS: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]]
     "GnssConstantVelocity": (("accel_psd",), (), ("sigma_pos", "sigma_vel")),
     "GnssLeastSquares": ((), (), ("sigma_pos", "sigma_vel")),
     "PaperEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
+    "FullStateEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
 }
 """Where each bundled estimator keeps its noise (attribute paths, valid after reset)."""
 
@@ -104,10 +105,13 @@ class NoiseAdapter:
     def __init__(self, estimator: Any):
         self.estimator = estimator
         self.custom = callable(getattr(estimator, "set_noise_scale", None))
-        name = type(estimator).__name__
+        # a subclass of a bundled estimator (e.g. the filterpy-based baselines) keeps its hooks
+        name = next((c.__name__ for c in type(estimator).__mro__ if c.__name__ in NOISE_HOOKS),
+                    type(estimator).__name__)
         if not self.custom and name not in NOISE_HOOKS:
             raise ConfigError("estimator", f"an estimator with noise hooks {sorted(NOISE_HOOKS)} or "
                               "a set_noise_scale(q_scale, r_scale) method", name)
+        self.name = name
         self.hooks = NOISE_HOOKS.get(name, ((), (), ()))
         self.base: dict[str, Any] = {}
 

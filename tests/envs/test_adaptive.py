@@ -32,7 +32,8 @@ def test_check_env_without_warnings():
 def test_noise_hooks_scale_the_estimator(name):
     env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, **OVER).unwrapped
     env.reset(seed=2)
-    hooks = NOISE_HOOKS[type(env.estimator).__name__]
+    hooks = env.adapter.hooks
+    assert hooks == NOISE_HOOKS[env.adapter.name]
     env.step(np.array([1.0, -0.5], dtype=np.float32))  # q x 10, r x 10^-0.5
     q, r_var, r_sig = hooks
     for path in q:
