@@ -522,6 +522,34 @@ def _single_threaded_children():
             os.environ.pop(k, None)
 
 
+def _die_with_parent(parent_pid: int) -> None:
+    """Worker initializer: the worker is killed when the campaign process dies, even by
+    SIGKILL (Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; elsewhere a watcher thread
+    polls the parent id once a second and exits the worker when it changes)."""
+    import signal
+    import sys
+    import threading
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="navsim-parent-watch", daemon=True).start()
+
+
 def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeTask, dict], None]) -> None:
     if workers == 0:
         for task in todo:
@@ -529,7 +557,8 @@ def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeT
         return
     # spawn: a fresh interpreter per worker (no fork of a process that runs threads),
     # started during the submissions below with the environment set there
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                  initializer=_die_with_parent, initargs=(os.getpid(),))
     try:
         with _single_threaded_children():
             futures = {pool.submit(run_episode_task, t): t for t in todo}

@@ -386,7 +386,8 @@ class Scenario:
         return Scenario.from_dict(_deep_merge(self.to_dict(), overrides), base_dir=self.base_dir)
 
     def config_hash(self) -> str:
-        """SHA-256 (16 hex digits) of the canonical JSON of :meth:`to_dict`.
+        """SHA-256 (16 hex digits) of the canonical JSON of :meth:`to_dict` plus the contents
+        digest of every user file the scenario reads (:meth:`file_digests`).
 
         Fields added after hashes were first published (:data:`_HASH_OMIT_IF_DEFAULT`)
         are left out while they hold their default, so every earlier scenario keeps its
@@ -396,8 +397,33 @@ class Scenario:
         for section, name, default in _HASH_OMIT_IF_DEFAULT:
             if data.get(section, {}).get(name) == default:
                 data[section] = {k: v for k, v in data[section].items() if k != name}
+        files = self.file_digests()
+        if files:  # user files enter by their contents: an edited track is another scenario
+            data["files"] = files
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+    def file_dependencies(self) -> dict[str, Path]:
+        """The user files the scenario reads, by field: ``track.file`` and a YUMA almanac
+        (``gnss.constellation = "yuma:<file>"``), resolved as :meth:`resolve_path` does.
+        Bundled data (``track.bundled``, the scenario presets) is versioned with navsim."""
+        deps = {}
+        if self.track.file:
+            deps["track.file"] = self.resolve_path(self.track.file)
+        if self.gnss.constellation.startswith("yuma:"):
+            deps["gnss.constellation"] = self.resolve_path(self.gnss.constellation[5:])
+        return deps
+
+    def file_digests(self) -> dict[str, str]:
+        """SHA-256 (16 hex digits) of the contents of each :meth:`file_dependencies` file
+        (``"missing"`` for a file that cannot be read: loading it reports the error)."""
+        out = {}
+        for name, path in self.file_dependencies().items():
+            try:
+                out[name] = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+            except OSError:
+                out[name] = "missing"
+        return out
 
     def resolve_path(self, name: str) -> Path:
         """A file name from the scenario, relative to the scenario's folder."""

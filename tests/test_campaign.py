@@ -8,6 +8,7 @@ import os
 import signal
 import sqlite3
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -370,3 +371,40 @@ def test_dask_result_lost_after_completion_is_resubmitted_then_stored_as_failed(
     assert got["a"] == [ok] and got["b"] == [ok]
     assert len(got["c"]) == 1 and got["c"][0]["status"] == "failed" and "OSError" in got["c"][0]["error"]
     assert client.submitted.count("a") == 2 and client.submitted.count("c") == cp.DASK_RESUBMITS + 1
+
+
+def test_sigkill_of_the_campaign_parent_leaves_no_worker_process(tmp_path):
+    """Local pool workers die with their parent: after SIGKILL of the campaign process
+    no worker is left running (they carry PR_SET_PDEATHSIG / a parent watcher)."""
+    import subprocess
+    import sys
+
+    spec_file = tmp_path / "orphans.toml"
+    spec_file.write_text(SPEC.replace("duration_s = 20.0", "duration_s = 200.0"), encoding="utf-8")
+    code = (
+        "import os, sys, time, threading\n"
+        "import navsim.campaign as cp\n"
+        "spec = cp.load_campaign(sys.argv[1])\n"
+        "cp.run_campaign(spec, workers=2, progress=False)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code, str(spec_file)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    children = []
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(children) < 2:
+        time.sleep(0.5)
+        try:
+            children = [int(p) for p in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+        except OSError:
+            pytest.skip("no /proc children listing on this system")
+        children = [c for c in children if "spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes().decode(errors="replace")]
+    assert len(children) >= 1, "no worker process started"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    alive = set(children)
+    deadline = time.monotonic() + 30
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = {c for c in alive if Path(f"/proc/{c}").exists() and
+                 Path(f"/proc/{c}/stat").read_text().split()[2] != "Z"}
+    assert not alive, f"orphaned workers still running: {sorted(alive)}"

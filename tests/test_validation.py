@@ -195,3 +195,28 @@ def test_generated_scenarios_run_or_exit_2_with_one_line(tmp_path_factory, capsy
     assert code in (0, 2), code
     if code == 2:
         assert len(err) == 1 and "error:" in err[0], err
+
+
+# ----------------------------------------------------------------------- files and hashes
+def test_scenario_hash_covers_the_contents_of_its_files(tmp_path):
+    pts = "lat_deg,lon_deg\n55.0,37.0\n55.001,37.0005\n55.002,37.001\n55.003,37.0015\n55.004,37.002\n"
+    (tmp_path / "t.csv").write_text(pts, encoding="utf-8")
+    path = _scenario_file(tmp_path, 'name="t"\n[timing]\nduration_s=2.0\n[track]\nfile="t.csv"\n')
+    first = load_scenario(path).config_hash()
+    assert load_scenario(path).config_hash() == first  # same contents, same hash
+    (tmp_path / "t.csv").write_text(pts.replace("55.004,37.002", "55.004,37.0021"), encoding="utf-8")
+    second = load_scenario(path).config_hash()
+    assert second != first  # an edited track is another scenario (campaign rows are not reused)
+    bundled = load_scenario("paper-2012")
+    assert bundled.file_dependencies() == {}  # bundled data only: the hash is the published one
+
+
+def test_track_file_resolves_relative_to_the_scenario_file(tmp_path, monkeypatch):
+    sub = tmp_path / "scen"
+    sub.mkdir()
+    (sub / "t.csv").write_text("lat_deg,lon_deg\n55.0,37.0\n55.001,37.0005\n55.002,37.001\n55.003,37.0015\n",
+                               encoding="utf-8")
+    path = _scenario_file(sub, 'name="t"\n[timing]\nduration_s=2.0\n[track]\nfile="t.csv"\n')
+    monkeypatch.chdir(tmp_path)  # the current directory has no t.csv: the scenario's folder is used
+    sim = Simulator(load_scenario(path))
+    assert sim.track.length > 300.0
