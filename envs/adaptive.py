@@ -76,6 +76,7 @@ NOISE_HOOKS: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]]
     "GnssLeastSquares": ((), (), ("sigma_pos", "sigma_vel")),
     "PaperEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
     "FullStateEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
+    "FullStateEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
 }
 """Where each bundled estimator keeps its noise (attribute paths, valid after reset)."""
 
