@@ -30,7 +30,8 @@ RESULTS_DIR = HERE / "results"
 PAGE = HERE / "RESULTS.md"
 
 # Arguments a script runs with for the results page (besides --quick when asked).
-DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"]}
+DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"],
+                                       "bench_campaign": ["--seeds", "4", "--duration", "50"]}
 
 
 def _scripts() -> list[str]:

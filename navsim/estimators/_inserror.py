@@ -112,6 +112,7 @@ from scipy.stats import chi2
 
 from ..errors import ConfigError
 from ..rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_to_mat
+from ..strapdown import compiled as _compiled
 from ..strapdown import ins as _ins
 from ..strapdown import onestep as _one
 from ..strapdown.ins import InsState
@@ -882,9 +883,10 @@ class ErrorStateIns:
         if self._pending is not None:
             self._start_interval(self._pending)
         quat_b, dv_b, ds_b, dv_first = body.compensated(self.gyro_bias, self.accel_bias, start, stop)
-        # the loop, explicitly: keeps stepping and batch bit-for-bit equal
+        # the loop, explicitly: keeps stepping and batch bit-for-bit equal (compiled when
+        # numba is installed: the same loop bit for bit, navsim.strapdown.compiled)
         sol = _ins.integrate_body_terms(self.state, quat_b, dv_b, ds_b, body.rule, self.dt, self.earth,
-                                        method="sequential")
+                                        method="compiled" if _compiled.available() else "sequential")
         n = len(sol) - 1
         rows = solution_rows(sol.lat[1:], sol.lon[1:], sol.h[1:], sol.velocity_n[1:], sol.quat_nb[1:])
         # specific force in ENU per step, C(k+1) dV_k / dt (for F of the next interval)
