@@ -31,13 +31,14 @@ position error in metres (the local-level linearisation of
 Truncated at the scenario's end; ``info["episode_score"]`` is the estimator's
 :class:`~navsim.metrics.EpisodeScore` over the whole episode.
 
-## Noise hooks
-:class:`NoiseAdapter` knows where each bundled estimator keeps its noise after
-``reset``; the factors are applied from base values saved at reset (see
-:data:`NOISE_HOOKS`). Q factors multiply PSDs, R factors multiply variances (sigmas by
-its square root). A changed Q takes effect at the estimator's next covariance interval
-(1 s by default, the decision period). A third-party estimator may offer
-``set_noise_scale(q_scale, r_scale)`` instead.
+## Noise scaling
+The factors go through the estimator's public ``set_noise_scale(process, measurement)``
+(:class:`navsim.estimators.base.NoiseScaling`; every bundled estimator declares where
+its Q and R live, :class:`navsim.estimators.base.NoiseScalable`, and any third-party
+estimator may implement it). Q factors multiply PSDs, R factors multiply variances
+(sigmas by its square root), relative to the values of the estimator's last reset. A
+changed Q takes effect at the estimator's next covariance interval (1 s by default, the
+decision period).
 
 ## Version History
 * v0: initial version.
@@ -58,90 +59,37 @@ import gymnasium as gym
 import numpy as np
 
 from navsim.errors import ConfigError
+from navsim.episode import step_batch
+from navsim.estimators.base import NoiseScaling
+from navsim.naverror import local_level_error, position_error_norm
 
 from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 
-__all__ = ["AdaptiveFilterEnv", "NoiseAdapter", "NOISE_HOOKS"]
-
-NOISE_HOOKS: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
-    # class name: (Q attributes (PSD: times q), R variance attributes (times r), R sigma attributes (times sqrt r))
-    "LooselyCoupledEkf": (("engine.Qc",), (), ("sigma_pos", "sigma_vel")),
-    "InsOnly": (("engine.Qc",), (), ()),
-    "TightlyCoupledEkf": (("engine.Qc",), (), ("sigma_pr", "sigma_rate")),
-    "TightlyCoupledUkf": (("engine.Qc",), (), ("sigma_pr", "sigma_rate")),
-    "AlongTrackFilter": (("q_v", "q_b"), (), ("sigma_pr", "sigma_rate")),
-    "GnssConstantVelocity": (("accel_psd",), (), ("sigma_pos", "sigma_vel")),
-    "GnssLeastSquares": ((), (), ("sigma_pos", "sigma_vel")),
-    "PaperEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
-    "FullStateEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
-    "FullStateEkf": (("_qd", "_qa"), ("_r_code", "_r_dopp"), ()),
-}
-"""Where each bundled estimator keeps its noise (attribute paths, valid after reset)."""
-
-
-def _get(obj, path: str):
-    for part in path.split("."):
-        obj = getattr(obj, part)
-    return obj
-
-
-def _set(obj, path: str, value) -> None:
-    parts = path.split(".")
-    for part in parts[:-1]:
-        obj = getattr(obj, part)
-    setattr(obj, parts[-1], value)
-
+__all__ = ["AdaptiveFilterEnv", "NoiseAdapter"]
 
 class NoiseAdapter:
     """Scale the process and measurement noise of an estimator after its reset.
 
     Parameters
     ----------
-    estimator : a bundled estimator (class in :data:`NOISE_HOOKS`) or an object with
-        ``set_noise_scale(q_scale, r_scale)``.
+    estimator : an object with the public ``set_noise_scale(process, measurement)`` of
+        :class:`navsim.estimators.base.NoiseScaling` (every bundled estimator has it).
     """
 
     def __init__(self, estimator: Any):
+        if not isinstance(estimator, NoiseScaling):
+            raise ConfigError("estimator", "an estimator with set_noise_scale(process, measurement) "
+                              "(navsim.estimators.base.NoiseScaling)", type(estimator).__name__)
         self.estimator = estimator
-        self.custom = callable(getattr(estimator, "set_noise_scale", None))
-        # a subclass of a bundled estimator (e.g. the filterpy-based baselines) keeps its hooks
-        name = next((c.__name__ for c in type(estimator).__mro__ if c.__name__ in NOISE_HOOKS),
-                    type(estimator).__name__)
-        if not self.custom and name not in NOISE_HOOKS:
-            raise ConfigError("estimator", f"an estimator with noise hooks {sorted(NOISE_HOOKS)} or "
-                              "a set_noise_scale(q_scale, r_scale) method", name)
-        self.name = name
-        self.hooks = NOISE_HOOKS.get(name, ((), (), ()))
-        self.base: dict[str, Any] = {}
 
     def capture(self) -> None:
-        """Save the base values (call right after ``estimator.reset``)."""
-        if self.custom:
-            return
-        q, r_var, r_sig = self.hooks
-        self.base = {}
-        for path in (*q, *r_var, *r_sig):
-            try:
-                value = _get(self.estimator, path)
-            except AttributeError:
-                raise ConfigError(f"{type(self.estimator).__name__}.{path}", "the noise attribute of NOISE_HOOKS "
-                                  "(the estimator changed: update navsim.envs.adaptive.NOISE_HOOKS)", "missing") from None
-            self.base[path] = np.copy(value) if isinstance(value, np.ndarray) else float(value)
+        """Nothing to save: the estimator scales relative to its own last reset."""
 
     def set(self, q_scale: float, r_scale: float) -> None:
-        """Apply the factors to the saved base values."""
-        if self.custom:
-            self.estimator.set_noise_scale(q_scale, r_scale)
-            return
-        q, r_var, r_sig = self.hooks
-        for path in q:
-            _set(self.estimator, path, self.base[path] * q_scale)
-        for path in r_var:
-            _set(self.estimator, path, self.base[path] * r_scale)
-        for path in r_sig:
-            _set(self.estimator, path, self.base[path] * math.sqrt(r_scale))
+        """Apply the factors (relative to the values of the estimator's last reset)."""
+        self.estimator.set_noise_scale(q_scale, r_scale)
 
 
 class AdaptiveFilterEnv(gym.Env):
@@ -246,7 +194,7 @@ class AdaptiveFilterEnv(gym.Env):
             self._pos = 0
         a = self._pos
         b = min(a + self.steps_per_decision, len(self._chunk))
-        out = _step_batch(self.estimator, _slice_batch(self._batch, a, b))
+        out = step_batch(self.estimator, _slice_batch(self._batch, a, b))
         self.tape.add_estimates(self._chunk.step0 + a, out)
         self._pos = b
         self._k = self._chunk.step0 + b
@@ -370,29 +318,9 @@ def _slice_batch(batch, a: int, b: int):
                             odometer_ds_m=None if batch.odometer_ds_m is None else batch.odometer_ds_m[a:b])
 
 
-def _step_batch(estimator, batch):
-    if callable(getattr(estimator, "step_batch", None)):
-        return estimator.step_batch(batch)
-    from navsim.estimators.base import EstimateBatch
-
-    rows, covs, nis, dof = [], [], [], []
-    for i in range(len(batch)):
-        e = estimator.step(batch.measurement(i))
-        rows.append(e.as_action())
-        covs.append(e.covariance)
-        nis.append(np.nan if e.nis is None else e.nis)
-        dof.append(e.nis_dof or 0)
-    cov = None if any(c is None for c in covs) else np.stack(covs)
-    return EstimateBatch(np.array(rows), cov, np.array(nis, dtype=float), np.array(dof, dtype=int))
-
-
 def _position_error(solution: np.ndarray, truth, earth) -> np.ndarray:
-    """3-D position error (m) per step, local-level linearisation about the truth."""
-    r_n, r_e = earth.radii(truth.lat)
-    d_lon = solution[:, 1] - truth.lon
-    d_lon = np.where(np.abs(d_lon) > math.pi, np.remainder(d_lon + math.pi, 2 * math.pi) - math.pi, d_lon)
-    dn = (solution[:, 0] - truth.lat) * (r_n + truth.h)
-    de = d_lon * (r_e + truth.h) * np.cos(truth.lat)
-    du = solution[:, 2] - truth.h
-    err = np.sqrt(dn * dn + de * de + du * du)
+    """3-D position error (m) per step (:func:`navsim.naverror.local_level_error`); inf where not finite."""
+    d_e, d_n, d_u = local_level_error(solution[:, 0], solution[:, 1], solution[:, 2], truth.lat, truth.lon,
+                                      truth.h, earth)
+    err = position_error_norm(d_e, d_n, d_u)
     return np.where(np.isfinite(err), err, np.inf)

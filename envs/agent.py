@@ -150,7 +150,7 @@ def evaluate(agent_or_estimator: Any, env_id: Any = "navsim/PaperRail-v0", seeds
     """
     import gymnasium as gym
 
-    from . import register_envs
+    from .registration import register_envs
 
     register_envs()
     agent = _as_agent(agent_or_estimator)

@@ -77,9 +77,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from navsim.episode import step_batch
 from navsim.errors import ConfigError
 
-from .adaptive import _step_batch
 from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
@@ -266,7 +266,7 @@ class DrivingEnv(gym.Env):
         from navsim.episode import measurement_batch
 
         chunk = self.sim.advance(n)
-        out = _step_batch(self.estimator, measurement_batch(chunk, self.prn, self.dt))
+        out = step_batch(self.estimator, measurement_batch(chunk, self.prn, self.dt))
         self.tape.add_chunk(chunk)
         self.tape.add_estimates(chunk.step0, out)
         sol = out.solution[-1]

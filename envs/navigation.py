@@ -30,11 +30,11 @@ the same time::
 
     e = w_pos |dr_n| + w_vel |dv_n| + w_att |(dheading, dpitch, droll)|
 
-``dr_n = (k_east dlon, k_north dlat, dh)`` in metres with ``k_north = R_N + h`` and
-``k_east = (R_E + h) cos(lat)`` of the true position (local-level linearisation: the
-relative error against the exact ENU difference is below 1e-6 for errors under 10 m and
-of the order (error / Earth radius) beyond), ``dv_n`` in m/s, angle differences wrapped to
-(-pi, pi] in rad. Defaults ``reward_weights=(1, 0, 0)``: minus the 3-D position error in
+``dr_n = (dE, dN, dU)`` the local-level position error of
+:func:`navsim.naverror.local_level_error` (the one the metrics use: ``dE = wrap(dlon)
+(R_E + h) cos(lat)``, ``dN = dlat (R_N + h)``, ``dU = dh`` at the true position),
+``dv_n`` in m/s, angle differences wrapped to (-pi, pi] by
+:func:`navsim.naverror.wrap_angle`, in rad. Defaults ``reward_weights=(1, 0, 0)``: minus the 3-D position error in
 metres. A non-finite action gets ``-reward_cap`` (default 1e4).
 
 ## Starting state
@@ -82,6 +82,7 @@ import gymnasium as gym
 import numpy as np
 
 from navsim.errors import ConfigError
+from navsim.naverror import local_level_error_scalar, wrap_angle, wrap_angle_scalar
 from navsim.scenario import Scenario, load_scenario
 from navsim.signals import Layout, ObservationCodec
 
@@ -92,7 +93,6 @@ __all__ = ["NavigationEnv", "resolve_scenario", "SCENARIO_SECTIONS"]
 
 SCENARIO_SECTIONS = ("name", "description", "earth", "timing", "track", "motion", "imu", "gnss", "outages", "initial",
                      "odometer")
-_TWO_PI = 2.0 * math.pi
 
 
 def resolve_scenario(scenario: str | Scenario, overrides: dict) -> Scenario:
@@ -108,26 +108,9 @@ def resolve_scenario(scenario: str | Scenario, overrides: dict) -> Scenario:
     return sc.with_overrides(overrides) if overrides else sc
 
 
-def _wrap(x: float) -> float:
-    if not math.isfinite(x):  # a non-finite action scores the reward cap, never raises
-        return x
-    if x > math.pi:
-        return x - _TWO_PI * math.floor((x + math.pi) / _TWO_PI)
-    if x <= -math.pi:
-        return x + _TWO_PI * math.floor((math.pi - x) / _TWO_PI)
-    return x
-
-
 def wrap_array(x: np.ndarray) -> np.ndarray:
-    """:func:`_wrap` elementwise (the same operations, so the same rounding)."""
-    x = np.asarray(x, dtype=float)
-    hi, lo = x > math.pi, x <= -math.pi
-    if not (hi.any() or lo.any()):
-        return x
-    out = x.copy()
-    out[hi] = x[hi] - _TWO_PI * np.floor((x[hi] + math.pi) / _TWO_PI)
-    out[lo] = x[lo] + _TWO_PI * np.floor((math.pi - x[lo]) / _TWO_PI)
-    return out
+    """The angle wrap of the rewards (:func:`navsim.naverror.wrap_angle`), kept by this name."""
+    return wrap_angle(x)
 
 
 class NavigationEnv(gym.Env):
@@ -259,12 +242,8 @@ class NavigationEnv(gym.Env):
         else:
             a = self._action_list(action, k)  # checks shape and dtype before any state changes
         # reward: minus the weighted error, local-level linearisation (module docstring)
-        d_lon = a[1] * self._s_lon - row[1]
-        if d_lon > math.pi or d_lon <= -math.pi:
-            d_lon = _wrap(d_lon)
-        de = d_lon * row[10]
-        dn = (a[0] * self._s_lat - row[0]) * row[9]
-        du = a[2] * self._s_h - row[2]
+        de, dn, du = local_level_error_scalar(a[0] * self._s_lat, a[1] * self._s_lon, a[2] * self._s_h,
+                                              row[0], row[1], row[2], row[9], row[10], row[11])
         w_pos, w_vel, w_att = self.reward_weights
         e = w_pos * math.sqrt(de * de + dn * dn + du * du)
         if w_vel or w_att:
@@ -304,7 +283,7 @@ class NavigationEnv(gym.Env):
             d = [a[j] * sc[j] - row[j] for j in (3, 4, 5)]
             e = e + w_vel * math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         if w_att:
-            d = [_wrap(a[j] * sc[j] - row[j]) for j in (6, 7, 8)]
+            d = [wrap_angle_scalar(a[j] * sc[j] - row[j]) for j in (6, 7, 8)]
             e = e + w_att * math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         return float(e)
 

@@ -43,11 +43,12 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from navsim.errors import ConfigError
+from navsim.naverror import wrap_angle
 from navsim.scenario import Scenario
 from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, chunk_truth_table, held_flags
-from .navigation import resolve_scenario, wrap_array
+from .navigation import resolve_scenario
 from .spaces import ACTION_SCALE, action_space, observation_space
 
 __all__ = ["NavigationVectorEnv"]
@@ -225,9 +226,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         i = self._i
         row = self._truth[i]  # the truth is the same for every member
         sc = self.action_scale
-        d_lon = a[:, 1] * sc[1] - row[1]
-        d_lon = wrap_array(d_lon)  # as the single env: the same rounding
-        de = d_lon * row[10]
+        # the navigation error of navsim.naverror, the same operations as the single env
+        de = wrap_angle(a[:, 1] * sc[1] - row[1]) * row[10] * row[11]
         dn = (a[:, 0] * sc[0] - row[0]) * row[9]
         du = a[:, 2] * sc[2] - row[2]
         w_pos, w_vel, w_att = self.reward_weights
@@ -236,7 +236,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             d = a[:, 3:6] * sc[3:6] - row[3:6]
             e = e + w_vel * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
         if w_att:
-            d = wrap_array(a[:, 6:9] * sc[6:9] - row[6:9])
+            d = wrap_angle(a[:, 6:9] * sc[6:9] - row[6:9])
             e = e + w_att * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
         reward = -np.where(e < self.reward_cap, e, self.reward_cap)
         if self.tapes is not None:

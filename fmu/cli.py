@@ -34,9 +34,9 @@ def _scenario(args):
 
     scenario = load_scenario(args.scenario)
     if getattr(args, "set", None):
-        from navsim.cli import _parse_overrides
+        from navsim.overrides import parse_overrides
 
-        scenario = scenario.with_overrides(_parse_overrides(args.set))
+        scenario = scenario.with_overrides(parse_overrides(args.set))
     return scenario
 
 

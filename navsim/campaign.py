@@ -763,7 +763,7 @@ def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
 
 def _html_table(result, metrics: Sequence[str]) -> str:
     from .metrics import EpisodeScore
-    from .report import _cell
+    from .report import format_cell
 
     units = EpisodeScore.units()
     names = result.estimators
@@ -771,7 +771,7 @@ def _html_table(result, metrics: Sequence[str]) -> str:
     rows = ["<tr><td>runs finished</td><td></td>" + "".join(
         f"<td>{len(result.scores.get(n, {}))}/{len(result.seeds)}</td>" for n in names) + "</tr>"]
     for m in metrics:
-        cells = "".join(f"<td>{html.escape(_cell(result.summary[n][m]))}</td>" for n in names)
+        cells = "".join(f"<td>{html.escape(format_cell(result.summary[n][m]))}</td>" for n in names)
         rows.append(f"<tr><td>{html.escape(m)}</td><td>{html.escape(units[m])}</td>{cells}</tr>")
     return f"<table><tr><th>metric</th><th>unit</th>{head}</tr>\n" + "\n".join(rows) + "</table>"
 

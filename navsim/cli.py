@@ -24,41 +24,9 @@ import sys
 from pathlib import Path
 
 from .errors import NavsimError
+from .overrides import scenario_from_args as _scenario
 
 __all__ = ["main"]
-
-
-def _parse_overrides(items: list[str]) -> dict:
-    """``--set timing.duration_s=10`` -> {"timing": {"duration_s": 10.0}} (TOML values)."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-
-    out: dict = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise NavsimError(f"--set expects KEY=VALUE, got {item!r}")
-        try:
-            parsed = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            parsed = value  # a bare string
-        node = out
-        parts = key.split(".")
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-        node[parts[-1]] = parsed
-    return out
-
-
-def _scenario(args):
-    from .scenario import load_scenario
-
-    scenario = load_scenario(args.scenario)
-    if getattr(args, "set", None):
-        scenario = scenario.with_overrides(_parse_overrides(args.set))
-    return scenario
 
 
 def _cmd_scenarios(args) -> int:

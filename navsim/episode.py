@@ -11,92 +11,59 @@ consume.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
 from .scenario import Scenario
 from .sensors import imu as imu_mod
-from .simulator import Chunk, Simulator
+from .earth import earth_model
+from .simulator import Chunk, Simulator, build_gnss_error_model, build_imu_model, build_track
+from .estimators.base import Estimator
 from .types import (
     Context,
     Estimate,
+    EstimateBatch,
     GnssObservation,
     Measurement,
     MeasurementBatch,
-    NominalGnss,
-    NominalImu,
-    NominalOdometer,
     Prior,
 )
 
-__all__ = ["make_context", "measurements", "EpisodeRecord", "run_episode"]
+__all__ = ["make_context", "measurements", "measurement_batch", "step_batch", "EpisodeRecord", "EpisodeRecorder", "run_episode"]
 
-C_LIGHT = 299_792_458.0
+def make_context(source: Scenario | Simulator) -> Context:
+    """The estimator's context: map, Earth, time base and the nominal sensor specification.
 
-
-def make_context(sim: Simulator) -> Context:
-    """The estimator's context: map, Earth, time base and the nominal sensor spec."""
-    nominal = imu_mod.nominal_noise(sim.imu_model)
-
-    def rms(x) -> float:
-        return float(np.sqrt(np.mean(np.square(x))))
-
-    imu = NominalImu(
-        gyro_arw=rms(nominal["gyro_arw"]), accel_vrw=rms(nominal["accel_vrw"]),
-        gyro_bias_sigma=float(np.hypot(rms(nominal["gyro_bias_sigma"]), rms(nominal["gyro_bias_instability_sigma"]))),
-        accel_bias_sigma=float(np.hypot(rms(nominal["accel_bias_sigma"]), rms(nominal["accel_bias_instability_sigma"]))),
-        gyro_bias_tau_s=float(np.min(nominal["gyro_bias_correlation_time_s"])),
-        accel_bias_tau_s=float(np.min(nominal["accel_bias_correlation_time_s"])),
-        gyro_rrw=rms(nominal["gyro_rate_random_walk"]), accel_rrw=rms(nominal["accel_rate_random_walk"]),
-    )
-    g = sim.gnss_model
-    clock = bool(g.clock_enabled)
-    iono, tropo = g.ionosphere_zenith_m > 0.0, g.troposphere_zenith_m > 0.0
-    atmosphere = bool(iono or tropo)
-    gnss = NominalGnss(
-        pseudorange_sigma_m=float(np.hypot(g.pseudorange_sigma_m, g.multipath_sigma_m)),
-        doppler_sigma_mps=float(g.doppler_sigma_mps),
-        clock_modelled=clock,
-        clock_bias_sigma_m=max(abs(g.clock_bias_m), 100.0) if clock else 0.0,
-        clock_drift_sigma_mps=max(abs(g.clock_drift_mps), 1.0) if clock else 0.0,
-        clock_phase_psd=C_LIGHT**2 * g.clock_h0 / 2.0 if clock else 0.0,
-        clock_freq_psd=2.0 * math.pi**2 * C_LIGHT**2 * g.clock_h_2 if clock else 0.0,
-        # Atmosphere: the designer knows the receiver is single-frequency and uncorrected
-        # (the delays are on), not the delays. A-priori values a receiver applies from
-        # standard models: ionosphere, the constant (night-time) term of the GPS broadcast
-        # (Klobuchar) model, 5 ns = 1.50 m (navsim broadcasts no coefficients); sigma
-        # 4.5 m, DO-229D J.2.3 tau_vert at mid-latitudes (the bundled scenarios lie at
-        # 44-47 deg). Troposphere, DO-229D A.4.2.4 at sea level and 45 deg, annual mean
-        # (P 1015.75 hPa, T 283.15 K, e 11.66 hPa): 2.313 m dry + 0.135 m wet = 2.448 m;
-        # sigma 0.12 m, DO-229D sigma_TVE. Thin shell at 350 km (Klobuchar), exponential
-        # height law with the 8 km scale height of the standard atmosphere.
-        atmosphere_modelled=atmosphere,
-        ionosphere_zenith_m=5e-9 * C_LIGHT if iono else 0.0,
-        ionosphere_zenith_sigma_m=4.5 if iono else 0.0,
-        troposphere_zenith_m=2.448 if tropo else 0.0,
-        troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
-        lever_arm_b_m=tuple(float(x) for x in sim.scenario.gnss.lever_arm_m),  # surveyed at installation
-    )
-    odometer = None
-    model = getattr(sim, "odometer_model", None)
-    if model is not None:  # the datasheet of the odometer (never its drawn errors)
-        odometer = NominalOdometer(
-            pulse_length_m=model.pulse_length_m, scale_factor_sigma=model.scale_factor_sigma,
-            scale_factor_gm_sigma=model.scale_factor_gm_sigma, scale_factor_tau_s=model.scale_factor_gm_tau_s,
-            noise_density_m_per_sqrt_s=model.noise_density_m_per_sqrt_s,
-            slip_fraction=max(model.slip_fraction, model.slide_fraction),
-            slip_accel_threshold_mps2=model.slip_accel_threshold_mps2 if model.has_slip else float("inf"),
-        )
-    timing = sim.timing
+    ``source`` is a :class:`~navsim.scenario.Scenario` (no simulator is built: the track
+    and each sensor's error model are built from the scenario and asked for their
+    nominal specification, :func:`navsim.sensors.imu.nominal_imu`,
+    :meth:`navsim.sensors.gnss.GnssErrorModel.nominal`,
+    :meth:`navsim.sensors.odometer.OdometerModel.nominal`) or a built
+    :class:`~navsim.simulator.Simulator` (its track and models are reused). Both give
+    the same context for the same scenario.
+    """
+    if isinstance(source, Scenario):
+        scenario = source
+        track = build_track(scenario)
+        earth = earth_model(scenario.earth)
+        imu_model = build_imu_model(scenario)
+        gnss_model = build_gnss_error_model(scenario)
+        odometer_model = scenario.odometer.model() if scenario.odometer.enabled else None
+    else:
+        scenario, track, earth = source.scenario, source.track, source.earth
+        imu_model, gnss_model = source.imu_model, source.gnss_model
+        odometer_model = getattr(source, "odometer_model", None)
+    timing = scenario.timing
     return Context(
-        track=sim.track, earth=sim.earth, nav_period_s=timing.nav_period_s, imu_period_s=timing.imu_period_s,
+        track=track, earth=earth, nav_period_s=timing.nav_period_s, imu_period_s=timing.imu_period_s,
         gnss_period_s=timing.gnss_period_s, samples_per_step=timing.samples_per_step,
-        orders=sim.scenario.imu.orders, imu=imu, gnss=gnss,
-        scenario_name=sim.scenario.name, config_hash=sim.scenario.config_hash(), odometer=odometer,
+        orders=scenario.imu.orders, imu=imu_mod.nominal_imu(imu_model),
+        gnss=gnss_model.nominal(scenario.gnss.lever_arm_m),  # the lever arm as surveyed at installation
+        scenario_name=scenario.name, config_hash=scenario.config_hash(),
+        odometer=None if odometer_model is None else odometer_model.nominal(),
     )
 
 
@@ -121,6 +88,24 @@ def measurement_batch(chunk: Chunk, prn: np.ndarray, dt: float) -> MeasurementBa
         gnss=tuple(sorted(_epochs(chunk, prn).items())),
         odometer_ds_m=None if chunk.odometer is None else chunk.odometer.ds_m,
     )
+
+
+def step_batch(estimator: Estimator, batch: MeasurementBatch) -> EstimateBatch:
+    """The estimator over a batch: its ``step_batch`` fast path when it has one, else
+    ``step`` on each measurement in turn (the same numbers, see
+    :mod:`navsim.estimators.base`)."""
+    fast = getattr(estimator, "step_batch", None)
+    if callable(fast):
+        return fast(batch)
+    rows, covs, nis, dof = [], [], [], []
+    for i in range(len(batch)):
+        e = estimator.step(batch.measurement(i))
+        rows.append(e.as_action())
+        covs.append(e.covariance)
+        nis.append(np.nan if e.nis is None else e.nis)
+        dof.append(e.nis_dof or 0)
+    cov = None if any(c is None for c in covs) else np.stack(covs)
+    return EstimateBatch(np.array(rows), cov, np.array(nis, dtype=float), np.array(dof, dtype=int))
 
 
 def measurements(chunk: Chunk, prn: np.ndarray, dt: float) -> Iterator[Measurement]:
@@ -172,9 +157,151 @@ class EpisodeRecord:
     prior: Prior
 
 
-def run_episode(scenario: Scenario, estimator, seed: int | None = 0, *, name: str = "",
-                chunk_steps: int = 10_000, progress=None, simulator: Simulator | None = None,
-                use_batch: bool = True) -> EpisodeRecord:
+class EpisodeRecorder:
+    """Truth, GNSS availability and estimates of one episode: the one recorder of every face.
+
+    :func:`run_episode`, the navigation env, the vector env and the FMU master fill one
+    and call :meth:`record` for the :class:`EpisodeRecord` that metrics score.
+
+    Truth is written per chunk (:meth:`add_chunk`) into arrays preallocated for the
+    whole episode (or, with ``truth_of``, shared with another recorder of a lockstep
+    episode, which writes it). Estimates arrive in step order as rows of :attr:`actions`
+    (appending a list is cheaper than a NumPy row write): as batches
+    (:meth:`add_estimates`), one :class:`~navsim.types.NavSolution` per step
+    (:meth:`add_estimate`), or rows an env appends itself, with optional per-step extras
+    in the dicts :attr:`cov`, :attr:`nis` and :attr:`cpu`; :meth:`record` merges them.
+    """
+
+    def __init__(self, n_steps: int, truth_of: EpisodeRecorder | None = None) -> None:
+        self.n = n_steps
+        self.owns_truth = truth_of is None
+        if truth_of is None:
+            self.s = np.empty(n_steps)
+            self.lat = np.empty(n_steps)
+            self.lon = np.empty(n_steps)
+            self.h = np.empty(n_steps)
+            self.velocity_n = np.empty((n_steps, 3))
+            self.hpr = np.empty((n_steps, 3))
+        else:  # the same truth (lockstep episodes of one scenario): share its arrays
+            if truth_of.n != n_steps:
+                raise ValueError("EpisodeRecorder: truth_of has another episode length")
+            self.s, self.lat, self.lon, self.h = truth_of.s, truth_of.lat, truth_of.lon, truth_of.h
+            self.velocity_n, self.hpr = truth_of.velocity_n, truth_of.hpr
+        self.actions: list = []
+        self.cov: dict[int, np.ndarray] = {}
+        self.nis: dict[int, tuple[float, int]] = {}
+        self.cpu: dict[int, float] = {}
+        self.cov_array: np.ndarray | None = None
+        self.nis_array: np.ndarray | None = None
+        self.nis_dof_array: np.ndarray | None = None
+        self.cpu_array: np.ndarray | None = None
+        self.gnss_t: list = []
+        self.gnss_n_valid: list = []
+        self.gnss_outage: list = []
+
+    def add_chunk(self, prepared: Any) -> None:
+        """Copy the truth and GNSS availability of a chunk (a simulator Chunk, or an
+        object with the chunk as ``.chunk``) into the recorder."""
+        chunk = getattr(prepared, "chunk", prepared)
+        k = slice(chunk.step0, chunk.step0 + len(chunk))
+        tr = chunk.truth
+        if self.owns_truth:
+            self.s[k], self.lat[k], self.lon[k], self.h[k] = tr.s, tr.lat, tr.lon, tr.h
+            self.velocity_n[k] = tr.velocity_n
+            self.hpr[k, 0], self.hpr[k, 1], self.hpr[k, 2] = tr.heading, tr.pitch, tr.roll
+        g = chunk.gnss
+        if g is not None:
+            self.gnss_t.append(g.t)
+            self.gnss_n_valid.append(g.valid.sum(axis=1))
+            self.gnss_outage.append(chunk.receiver_outage)
+
+    def _nis_arrays(self) -> None:
+        if self.nis_array is None:
+            self.nis_array = np.full(self.n, np.nan)
+            self.nis_dof_array = np.zeros(self.n, dtype=int)
+
+    def _cov_array(self) -> np.ndarray:
+        if self.cov_array is None:
+            self.cov_array = np.full((self.n, 9, 9), np.nan)
+        return self.cov_array
+
+    def add_estimates(self, step0: int, out: EstimateBatch, cpu_s: float | None = None) -> None:
+        """Record an :class:`~navsim.types.EstimateBatch` of the steps from ``step0`` on
+        (the next steps: solutions in physical units, covariance, NIS; ``cpu_s``: CPU
+        seconds per step)."""
+        n = len(out.solution)
+        k = slice(step0, step0 + n)
+        self.actions.extend(out.solution.tolist())
+        if out.covariance is not None:
+            self._cov_array()[k] = out.covariance
+        self._nis_arrays()
+        self.nis_array[k] = out.nis
+        self.nis_dof_array[k] = out.nis_dof
+        if cpu_s is not None:
+            self._cpu_array()[k] = cpu_s
+
+    def _cpu_array(self) -> np.ndarray:
+        if self.cpu_array is None:
+            self.cpu_array = np.full(self.n, np.nan)
+        return self.cpu_array
+
+    def add_estimate(self, k: int, e: Estimate, cpu_s: float | None = None) -> None:
+        """Record the solution of step ``k``, the next step (covariance copied: the
+        estimator may reuse its arrays)."""
+        v = e.velocity_n
+        self.actions.append([e.lat, e.lon, e.h, v[0], v[1], v[2], e.heading, e.pitch, e.roll])
+        if e.covariance is not None:
+            self._cov_array()[k] = e.covariance
+        if e.nis is not None:
+            self._nis_arrays()
+            self.nis_array[k], self.nis_dof_array[k] = e.nis, e.nis_dof or 0
+        if cpu_s is not None:
+            self._cpu_array()[k] = cpu_s
+
+    def estimates(self, scale: np.ndarray | None = None) -> np.ndarray:
+        """(n, 9) solutions so far (action rows times ``scale``), nan-padded to the episode length."""
+        est = np.full((self.n, 9), np.nan)
+        if self.actions:
+            est[: len(self.actions)] = np.asarray(self.actions, dtype=float)
+        return est if scale is None else est * scale
+
+    def record(self, scenario: Scenario, seed: int | None, name: str, earth: Any, prior: Prior,
+               scale: np.ndarray | None = None) -> EpisodeRecord:
+        """The :class:`EpisodeRecord` of the episode (``scale``: of the action rows)."""
+        n = self.n
+        est = self.estimates(scale)
+        cov = self.cov_array
+        if self.cov:
+            cov = self._cov_array()
+            for k, c in self.cov.items():
+                cov[k] = c
+        nis = np.full(n, np.nan)
+        nis_dof = np.zeros(n, dtype=int)
+        if self.nis_array is not None:
+            nis, nis_dof = self.nis_array, self.nis_dof_array
+        for k, (value, dof) in self.nis.items():
+            nis[k], nis_dof[k] = value, dof
+        cpu = np.full(n, np.nan) if self.cpu_array is None else self.cpu_array
+        if self.cpu:
+            cpu[list(self.cpu)] = list(self.cpu.values())
+        dt = scenario.timing.nav_period_s
+        cat = np.concatenate
+        return EpisodeRecord(
+            scenario=scenario, seed=seed, estimator=name, earth=earth, t=(np.arange(n) + 1) * dt,
+            truth_s=self.s, truth_lat=self.lat, truth_lon=self.lon, truth_h=self.h,
+            truth_velocity_n=self.velocity_n, truth_hpr=self.hpr,
+            est_lat=est[:, 0], est_lon=est[:, 1], est_h=est[:, 2], est_velocity_n=est[:, 3:6], est_hpr=est[:, 6:9],
+            est_cov=cov, nis=nis, nis_dof=nis_dof, step_time_s=cpu,
+            gnss_t=cat(self.gnss_t) if self.gnss_t else np.zeros(0),
+            gnss_n_valid=cat(self.gnss_n_valid) if self.gnss_n_valid else np.zeros(0, dtype=int),
+            gnss_receiver_outage=cat(self.gnss_outage) if self.gnss_outage else np.zeros(0, dtype=bool),
+            prior=prior,
+        )
+
+
+def run_episode(scenario: Scenario, estimator: Estimator, seed: int | None = 0, *, name: str = "",
+                chunk_steps: int = 10_000, progress: Callable[[int], Any] | None = None,
+                simulator: Simulator | None = None, use_batch: bool = True) -> EpisodeRecord:
     """Simulate one episode of ``scenario`` and run ``estimator`` on it.
 
     ``progress`` is an optional callable ``progress(n_steps_done)`` (e.g. a tqdm bar's
@@ -185,14 +312,7 @@ def run_episode(scenario: Scenario, estimator, seed: int | None = 0, *, name: st
     sim = simulator or Simulator(scenario)
     start = sim.reset(seed)
     estimator.reset(make_context(sim), start.prior)
-    n = scenario.timing.steps
-    est = np.full((n, 9), np.nan)
-    cov = None
-    nis = np.full(n, np.nan)
-    nis_dof = np.zeros(n, dtype=int)
-    cpu = np.zeros(n)
-    truth = {k: [] for k in ("s", "lat", "lon", "h", "velocity_n", "hpr")}
-    gnss_t, n_valid, rx_out = [], [], []
+    recorder = EpisodeRecorder(scenario.timing.steps)
     prn = np.asarray(sim.constellation.prn)
     dt = scenario.timing.nav_period_s
     clock = time.process_time
@@ -201,45 +321,12 @@ def run_episode(scenario: Scenario, estimator, seed: int | None = 0, *, name: st
         if batch_path is not None:
             t0 = clock()
             out = batch_path(measurement_batch(chunk, prn, dt))
-            k = slice(chunk.step0, chunk.step0 + len(chunk))
-            cpu[k] = (clock() - t0) / len(chunk)
-            est[k] = out.solution
-            if out.covariance is not None:
-                if cov is None:
-                    cov = np.full((n, 9, 9), np.nan)
-                cov[k] = out.covariance
-            nis[k], nis_dof[k] = out.nis, out.nis_dof
+            recorder.add_estimates(chunk.step0, out, (clock() - t0) / len(chunk))
         for meas in (measurements(chunk, prn, dt) if batch_path is None else ()):
             t0 = clock()
-            e: Estimate = estimator.step(meas)
-            cpu[meas.step] = clock() - t0
-            k = meas.step
-            est[k] = (e.lat, e.lon, e.h, *e.velocity_n, e.heading, e.pitch, e.roll)
-            if e.covariance is not None:
-                if cov is None:
-                    cov = np.full((n, 9, 9), np.nan)
-                cov[k] = e.covariance
-            if e.nis is not None:
-                nis[k], nis_dof[k] = e.nis, e.nis_dof or 0
-        tr = chunk.truth
-        for key in ("s", "lat", "lon", "h", "velocity_n"):
-            truth[key].append(getattr(tr, key))
-        truth["hpr"].append(np.column_stack([tr.heading, tr.pitch, tr.roll]))
-        if chunk.gnss is not None:
-            gnss_t.append(chunk.gnss.t)
-            n_valid.append(chunk.gnss.valid.sum(axis=1))
-            rx_out.append(chunk.receiver_outage)
+            e = estimator.step(meas)
+            recorder.add_estimate(meas.step, e, clock() - t0)
+        recorder.add_chunk(chunk)
         if progress is not None:
             progress(len(chunk))
-    cat = {k: np.concatenate(v) for k, v in truth.items()}
-    return EpisodeRecord(
-        scenario=scenario, seed=seed, estimator=name or type(estimator).__name__, earth=sim.earth,
-        t=(np.arange(n) + 1) * dt, truth_s=cat["s"], truth_lat=cat["lat"], truth_lon=cat["lon"], truth_h=cat["h"],
-        truth_velocity_n=cat["velocity_n"], truth_hpr=cat["hpr"],
-        est_lat=est[:, 0], est_lon=est[:, 1], est_h=est[:, 2], est_velocity_n=est[:, 3:6], est_hpr=est[:, 6:9],
-        est_cov=cov, nis=nis, nis_dof=nis_dof, step_time_s=cpu,
-        gnss_t=np.concatenate(gnss_t) if gnss_t else np.zeros(0),
-        gnss_n_valid=np.concatenate(n_valid) if n_valid else np.zeros(0, dtype=int),
-        gnss_receiver_outage=np.concatenate(rx_out) if rx_out else np.zeros(0, dtype=bool),
-        prior=start.prior,
-    )
+    return recorder.record(scenario, seed, name or type(estimator).__name__, sim.earth, start.prior)

@@ -76,6 +76,7 @@ import numpy as np
 from scipy import stats
 
 from .errors import ConfigError
+from .naverror import local_level_error, wrap_angle
 from .estimators.base import STATE_LABELS
 from .rotations import mat_nb_from_hpr, mat_to_quat, quat_to_rotvec
 
@@ -110,11 +111,8 @@ MIN_SATELLITES = 4
 # ============================================================================ raw errors
 def error_vector(record) -> np.ndarray:
     """Estimation error (n, 9) = estimate - truth in the convention above."""
-    earth = record.earth
-    r_n, r_e = earth.radii(record.truth_lat)
-    d_e = np.angle(np.exp(1j * (record.est_lon - record.truth_lon))) * (r_e + record.truth_h) * np.cos(record.truth_lat)
-    d_n = (record.est_lat - record.truth_lat) * (r_n + record.truth_h)
-    d_u = record.est_h - record.truth_h
+    d_e, d_n, d_u = local_level_error(record.est_lat, record.est_lon, record.est_h, record.truth_lat,
+                                      record.truth_lon, record.truth_h, record.earth)
     dv = record.est_velocity_n - record.truth_velocity_n
     mat_est = mat_nb_from_hpr(*record.est_hpr.T)
     mat_true = mat_nb_from_hpr(*record.truth_hpr.T)
@@ -213,7 +211,7 @@ def error_series(record, track=None) -> ErrorSeries:
     d_e, d_n = err[:, 0], err[:, 1]
     along = u_e * d_e + u_n * d_n
     cross = u_n * d_e - u_e * d_n  # right of the direction of increasing s
-    heading_err = np.angle(np.exp(1j * (record.est_hpr[:, 0] - record.truth_hpr[:, 0])))
+    heading_err = wrap_angle(record.est_hpr[:, 0] - record.truth_hpr[:, 0])
     sigma = sig_h = sig_a = sig_c = None
     cov = record.est_cov
     if cov is not None:

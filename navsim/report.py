@@ -57,6 +57,7 @@ from .metrics import (
 
 __all__ = [
     "add_run_parser",
+    "format_cell",
     "add_bench_parser",
     "cmd_run",
     "cmd_bench",
@@ -169,9 +170,9 @@ def _check_estimators(names: Sequence[str]) -> list[str]:
 
 
 def _load_scenario(args):
-    from .cli import _scenario
+    from .overrides import scenario_from_args
 
-    return _scenario(args)
+    return scenario_from_args(args)
 
 
 # ============================================================================ running
@@ -347,7 +348,8 @@ def format_score_table(score: EpisodeScore) -> str:
     return "\n".join(lines)
 
 
-def _cell(s: MetricSummary) -> str:
+def format_cell(s: MetricSummary) -> str:
+    """A table cell: ``mean [low, high]`` of a summary, the mean alone without an interval, "-" if empty."""
     if s.n == 0:
         return "-"
     if not math.isfinite(s.low):
@@ -374,7 +376,7 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
     runs = [str(len(result.scores.get(n, {}))) + "/" + str(len(result.seeds)) for n in names]
     lines.append("| runs finished | | " + " | ".join(runs) + " |")
     for m in metrics:
-        cells = [_cell(result.summary[n][m]) for n in names]
+        cells = [format_cell(result.summary[n][m]) for n in names]
         lines.append(f"| {m} | {units[m]} | " + " | ".join(cells) + " |")
     mc = [(n, result.mc_nees.get(n)) for n in names if result.mc_nees.get(n) is not None]
     if mc:

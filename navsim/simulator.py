@@ -60,7 +60,8 @@ from .sensors import odometer as odometer_mod
 from .sensors import outages as outage_mod
 from .threads import limited
 
-__all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile"]
+__all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile",
+           "build_imu_model", "build_gnss", "build_gnss_error_model"]
 
 STREAMS = ("motion", "imu", "gnss", "outages", "initial_error", "odometer")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
@@ -200,13 +201,14 @@ class Start:
 def build_track(scenario: Scenario):
     """The scenario's track object (bundled or from a file), on the scenario's Earth."""
     from . import track as track_mod
+    from . import trackio
 
     cfg = scenario.track
     earth = earth_model(scenario.earth)
     if cfg.bundled:
-        track = track_mod.load_bundled_track(cfg.bundled, earth=earth)
+        track = trackio.load_bundled_track(cfg.bundled, earth=earth)
     else:
-        track = track_mod.load_track_file(scenario.resolve_path(cfg.file), earth=earth, smoothing_m=cfg.smoothing_m)
+        track = trackio.load_track_file(scenario.resolve_path(cfg.file), earth=earth, smoothing_m=cfg.smoothing_m)
     if cfg.cant != "track":
         track = track.with_cant_model(track_mod.CantModel(
             mode=cfg.cant, design_speed_mps=cfg.cant_design_speed_mps, max_cant=math.radians(cfg.cant_max_deg)))
@@ -273,10 +275,16 @@ def build_gnss(scenario: Scenario, earth):
         constellation = gnss_mod.walker_constellation(cfg.constellation, phase_rad=math.radians(cfg.epoch_phase_deg))
     else:
         raise ConfigError("gnss.constellation", "'gps', 'glonass' or 'yuma:<file>'", cfg.constellation)
+    return constellation, build_gnss_error_model(scenario)
+
+
+def build_gnss_error_model(scenario: Scenario) -> gnss_mod.GnssErrorModel:
+    """The truth-side GNSS error model: preset plus ``gnss.overrides``."""
+    cfg = scenario.gnss
     model = gnss_mod.GnssErrorModel.preset(cfg.preset)
     if cfg.overrides:
         model = _replace_checked(model, cfg.overrides, "gnss.overrides")
-    return constellation, model
+    return model
 
 
 # ============================================================================ simulator

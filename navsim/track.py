@@ -65,14 +65,19 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
-from importlib import resources
 from typing import Any, Protocol, Sequence, Union, runtime_checkable
 
 import numpy as np
 from numpy.polynomial import Polynomial
 from numpy.polynomial import polynomial as npoly
 from numpy.typing import ArrayLike
-from scipy.interpolate import BSpline, PPoly, make_interp_spline, make_lsq_spline, make_splprep
+from scipy.interpolate import (
+    BSpline,
+    PPoly,
+    make_interp_spline,
+    make_lsq_spline,
+    make_splprep,
+)
 
 from .earth import SPHERICAL, WGS84, EarthModel
 from .errors import ConfigError, TrackError
@@ -90,9 +95,6 @@ __all__ = [
     "fit_polynomial_track",
     "with_cant",
     "segment_mask",
-    "load_bundled_track",
-    "list_bundled_tracks",
-    "load_track_file",
 ]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
@@ -1295,48 +1297,3 @@ def _make_fit(track, degree, breakpoints, cross, dh, n_points) -> PolynomialFit:
         rms_height_m=float(np.sqrt(np.mean(dh**2))),
         n_points=int(n_points),
     )
-
-
-# ======================================================================== bundled tracks
-_BUNDLED_SUFFIXES = (".toml", ".geojson")
-
-
-def _bundled_dir():
-    return resources.files("navsim").joinpath("data", "tracks")
-
-
-def list_bundled_tracks() -> list[str]:
-    """Names of the bundled tracks (``"paper-2012"``, ``"mountain-railway"``, ``"urban-road"``)."""
-    names = []
-    for entry in _bundled_dir().iterdir():
-        for suffix in _BUNDLED_SUFFIXES:
-            if entry.name.endswith(suffix):
-                names.append(entry.name[: -len(suffix)])
-    return sorted(names)
-
-
-def load_bundled_track(name: str, *, earth: EarthModel | None = None):
-    """A bundled track by name; ``earth`` overrides the Earth model the file declares.
-
-    The polynomial track's coefficients are angles and heights, valid on either Earth;
-    waypoint tracks keep their lat/lon/h and re-measure arc length on the given Earth.
-    """
-    from . import trackio
-
-    if name not in list_bundled_tracks():  # a name only: no separators, no paths outside the package
-        raise ConfigError("track.bundled", f"the name of a bundled track, one of {list_bundled_tracks()} "
-                                           "(files go in track.file)", name)
-    for suffix in _BUNDLED_SUFFIXES:
-        entry = _bundled_dir().joinpath(name + suffix)
-        if entry.is_file():
-            with resources.as_file(entry) as path:
-                return trackio.load_track(path, earth=earth)
-    raise ConfigError("track.bundled", f"one of {list_bundled_tracks()}", name)
-
-
-def load_track_file(path, *, earth: EarthModel | None = None, smoothing_m: float = 0.0,
-                    cant_model: CantModel | None = None):
-    """A track from a file (.geojson/.json, .gpx, .csv, .toml); see :mod:`navsim.trackio`."""
-    from . import trackio
-
-    return trackio.load_track(path, earth=earth, smoothing_m=smoothing_m, cant_model=cant_model)

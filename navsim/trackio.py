@@ -51,6 +51,7 @@ import math
 import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -77,6 +78,9 @@ __all__ = [
     "track_from_waypoints",
     "load_polynomial_toml",
     "load_track",
+    "list_bundled_tracks",
+    "load_bundled_track",
+    "load_track_file",
 ]
 
 
@@ -434,3 +438,44 @@ def load_track(path: str | os.PathLike, *, earth: EarthModel | None = None, smoo
             raise ConfigError("track.file", "an existing file", os.fspath(path))
         return load_polynomial_toml(path, earth=earth, cant_model=cant_model)
     return track_from_waypoints(read_waypoints(path), earth=earth, smoothing_m=smoothing_m, cant_model=cant_model)
+
+
+# ======================================================================== bundled tracks
+_BUNDLED_SUFFIXES = (".toml", ".geojson")
+
+
+def _bundled_dir():
+    return resources.files("navsim").joinpath("data", "tracks")
+
+
+def list_bundled_tracks() -> list[str]:
+    """Names of the bundled tracks (``"paper-2012"``, ``"mountain-railway"``, ``"urban-road"``)."""
+    names = []
+    for entry in _bundled_dir().iterdir():
+        for suffix in _BUNDLED_SUFFIXES:
+            if entry.name.endswith(suffix):
+                names.append(entry.name[: -len(suffix)])
+    return sorted(names)
+
+
+def load_bundled_track(name: str, *, earth: EarthModel | None = None):
+    """A bundled track by name; ``earth`` overrides the Earth model the file declares.
+
+    The polynomial track's coefficients are angles and heights, valid on either Earth;
+    waypoint tracks keep their lat/lon/h and re-measure arc length on the given Earth.
+    """
+    if name not in list_bundled_tracks():  # a name only: no separators, no paths outside the package
+        raise ConfigError("track.bundled", f"the name of a bundled track, one of {list_bundled_tracks()} "
+                                           "(files go in track.file)", name)
+    for suffix in _BUNDLED_SUFFIXES:
+        entry = _bundled_dir().joinpath(name + suffix)
+        if entry.is_file():
+            with resources.as_file(entry) as path:
+                return load_track(path, earth=earth)
+    raise ConfigError("track.bundled", f"one of {list_bundled_tracks()}", name)
+
+
+def load_track_file(path, *, earth: EarthModel | None = None, smoothing_m: float = 0.0,
+                    cant_model: CantModel | None = None):
+    """A track from a file (.geojson/.json, .gpx, .csv, .toml); see :mod:`navsim.trackio`."""
+    return load_track(path, earth=earth, smoothing_m=smoothing_m, cant_model=cant_model)

@@ -22,12 +22,11 @@ from navsim.track import (
     Track,
     TrackSegment,
     fit_polynomial_track,
-    list_bundled_tracks,
-    load_bundled_track,
     segment_mask,
     track_frame,
     with_cant,
 )
+from navsim.trackio import list_bundled_tracks, load_bundled_track
 
 ROOT = Path(__file__).resolve().parents[1]
 R_SPH = SPHERICAL.a

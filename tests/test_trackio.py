@@ -10,7 +10,8 @@ import pytest
 
 from navsim.earth import SPHERICAL, WGS84
 from navsim.errors import ConfigError, TrackError
-from navsim.track import CantModel, PolynomialTrack, SplineTrack, TrackSegment, load_track_file
+from navsim.track import CantModel, PolynomialTrack, SplineTrack, TrackSegment
+from navsim.trackio import load_track_file
 from navsim.trackio import (
     load_track,
     read_csv,

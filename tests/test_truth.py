@@ -12,7 +12,7 @@ import pytest
 
 from navsim.earth import SPHERICAL, WGS84, mat_en
 from navsim.motion import ConstantSpeed, Oscillation, Station, Timetable, true_state
-from navsim.track import load_bundled_track
+from navsim.trackio import load_bundled_track
 
 
 def rot_ie(earth, t):

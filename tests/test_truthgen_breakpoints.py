@@ -12,7 +12,7 @@ import pytest
 
 from navsim.earth import WGS84
 from navsim.motion import ConstantSpeed, Oscillation, Station, Timetable, TrueState, body_kinematics
-from navsim.track import load_bundled_track
+from navsim.trackio import load_bundled_track
 from navsim.truthgen import TruthGenerator
 
 R = 4

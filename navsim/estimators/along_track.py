@@ -180,7 +180,7 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 
 __all__ = ["AlongTrackFilter", "TrackTable"]
 
@@ -455,7 +455,7 @@ class AlongTrackOptions:
             raise ConfigError("along-track.divergence_epochs", "a positive integer", self.divergence_epochs)
 
 
-class AlongTrackFilter:
+class AlongTrackFilter(NoiseScalable):
     """Kalman filter on arc length, speed and along-track accelerometer bias.
 
     Parameters (keywords, all optional)
@@ -504,6 +504,10 @@ class AlongTrackFilter:
 
     The model, discretisation and measurement equations are in the module docstring.
     """
+
+    NOISE_PROCESS = ('q_v', 'q_b')
+    NOISE_MEASUREMENT_SIGMA = ('sigma_pr', 'sigma_rate')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, **options):
         self.options = AlongTrackOptions(**options)

@@ -35,7 +35,11 @@ and are re-exported here; ``Prior`` and ``Estimate`` are two names of
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+import functools
+import math
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
 
 from ..types import (
     STATE_LABELS,
@@ -63,6 +67,8 @@ __all__ = [
     "Prior",
     "Estimate",
     "Estimator",
+    "NoiseScalable",
+    "NoiseScaling",
     "MeasurementBatch",
     "EstimateBatch",
     "STATE_LABELS",
@@ -85,3 +91,89 @@ class Estimator(Protocol):
 # An estimator may also offer ``step_batch(batch: MeasurementBatch) -> EstimateBatch``,
 # a fast path that must give the same numbers as calling ``step`` on each measurement
 # in turn (to floating-point rounding); navsim's episode runner uses it when present.
+
+
+@runtime_checkable
+class NoiseScaling(Protocol):
+    """The public way for an agent to act on an estimator (every bundled estimator has it).
+
+    ``set_noise_scale(process, measurement)`` multiplies the estimator's process-noise
+    intensities (PSDs, variances) by ``process`` and its measurement-noise variances by
+    ``measurement`` (standard deviations by ``sqrt(measurement)``), relative to the values
+    it set at its last ``reset`` (calls do not compound; ``(1, 1)`` restores them). Used
+    by the adaptive-filtering env (:mod:`navsim.envs.adaptive`).
+    """
+
+    def set_noise_scale(self, process: float, measurement: float) -> None:
+        """Scale Q by ``process`` and R by ``measurement`` (both > 0)."""
+        ...
+
+
+def _get_path(obj: Any, path: str) -> Any:
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _set_path(obj: Any, path: str, value: Any) -> None:
+    parts = path.split(".")
+    for part in parts[:-1]:
+        obj = getattr(obj, part)
+    setattr(obj, parts[-1], value)
+
+
+class NoiseScalable:
+    """:class:`NoiseScaling` from declared attributes (a mixin of the bundled estimators).
+
+    A subclass names where its noise lives after ``reset`` (dotted attribute paths):
+    ``NOISE_PROCESS`` (intensities scaled by ``process``), ``NOISE_MEASUREMENT_VARIANCE``
+    (scaled by ``measurement``), ``NOISE_MEASUREMENT_SIGMA`` (scaled by
+    ``sqrt(measurement)``). The values are captured at the first call after each
+    ``reset``; the subclass's ``reset`` is wrapped to restore the captured values first
+    (some, e.g. an option's PSD, are not set anew by ``reset``) and forget them, so
+    scales never compound, within an episode or across episodes.
+    """
+
+    NOISE_PROCESS: ClassVar[tuple[str, ...]] = ()
+    NOISE_MEASUREMENT_VARIANCE: ClassVar[tuple[str, ...]] = ()
+    NOISE_MEASUREMENT_SIGMA: ClassVar[tuple[str, ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        inner = cls.__dict__.get("reset")
+        if inner is not None:
+            @functools.wraps(inner)
+            def reset(self: Any, *args: Any, **kw: Any) -> Any:
+                base = getattr(self, "_noise_base", None)
+                if base is not None:  # undo the scaling first: reset may not set every value anew
+                    for path, value in base.items():
+                        _set_path(self, path, value)
+                self._noise_base = None
+                return inner(self, *args, **kw)
+
+            cls.reset = reset  # type: ignore[attr-defined]
+
+    def noise_base(self) -> dict[str, Any]:
+        """The noise values set by the last ``reset`` (path -> value), captured now if not yet."""
+        base = getattr(self, "_noise_base", None)
+        if base is None:
+            base = {}
+            for path in (*self.NOISE_PROCESS, *self.NOISE_MEASUREMENT_VARIANCE, *self.NOISE_MEASUREMENT_SIGMA):
+                value = _get_path(self, path)
+                base[path] = np.copy(value) if isinstance(value, np.ndarray) else float(value)
+            self._noise_base = base
+        return base
+
+    def set_noise_scale(self, process: float, measurement: float) -> None:
+        """Scale Q by ``process`` and R by ``measurement`` relative to the last reset."""
+        process, measurement = float(process), float(measurement)
+        if not (process > 0.0 and measurement > 0.0 and math.isfinite(process) and math.isfinite(measurement)):
+            raise ValueError(f"set_noise_scale: positive finite factors expected, got {process}, {measurement}")
+        base = self.noise_base()
+        for path in self.NOISE_PROCESS:
+            _set_path(self, path, base[path] * process)
+        for path in self.NOISE_MEASUREMENT_VARIANCE:
+            _set_path(self, path, base[path] * measurement)
+        root = math.sqrt(measurement)
+        for path in self.NOISE_MEASUREMENT_SIGMA:
+            _set_path(self, path, base[path] * root)

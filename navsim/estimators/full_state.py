@@ -77,7 +77,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 from .paper_ekf import input_polynomial_matrix
 
 __all__ = ["FullStateEkf"]
@@ -94,7 +94,7 @@ def _dmat(a, b, g, lib=math):
             (sb * ca, -sa, cb * ca))
 
 
-class FullStateEkf:
+class FullStateEkf(NoiseScalable):
     """Nine-state continuous-discrete EKF on (1) of seed 003; see the module docstring.
 
     Parameters
@@ -112,6 +112,10 @@ class FullStateEkf:
     ``Estimate.extra`` holds ``state`` and ``state_cov``. After :meth:`step_batch`,
     ``last_states`` / ``last_state_cov`` hold the batch's states (n, 9) and covariances.
     """
+
+    NOISE_PROCESS = ('_qd', '_qa')
+    NOISE_MEASUREMENT_VARIANCE = ('_r_code', '_r_dopp')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     n_states = _N
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 from .loosely import gnss_fixes
 
 __all__ = ["GnssLeastSquares", "GnssConstantVelocity"]
@@ -105,7 +105,7 @@ def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndar
     return EstimateBatch(solution, covariance, nis, nis_dof)
 
 
-class GnssLeastSquares:
+class GnssLeastSquares(NoiseScalable):
     """Per-epoch LS fix, extrapolated (or held) between epochs.
 
     Parameters
@@ -123,6 +123,9 @@ class GnssLeastSquares:
         0 gives the pure constant-velocity covariance, which is overconfident through
         long outages on a curved track.
     """
+
+    NOISE_MEASUREMENT_SIGMA = ('sigma_pos', 'sigma_vel')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, extrapolate: bool = True, min_satellites: int = 4, measurement_scale: float = 1.0,
                  accel_psd: float = 0.01) -> None:
@@ -190,7 +193,7 @@ class GnssLeastSquares:
         covariance[:, 3:6, 3:6] += (q * tt) * eye
 
 
-class GnssConstantVelocity:
+class GnssConstantVelocity(NoiseScalable):
     """Constant-velocity Kalman filter (filterpy) on the LS position and velocity fixes.
 
     Parameters
@@ -205,6 +208,10 @@ class GnssConstantVelocity:
     measurement_scale : float
         Factor on the nominal GNSS sigmas.
     """
+
+    NOISE_PROCESS = ('accel_psd',)
+    NOISE_MEASUREMENT_SIGMA = ('sigma_pos', 'sigma_vel')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, accel_psd: float = 0.1, use_velocity: bool = True, min_satellites: int = 4,
                  measurement_scale: float = 1.0) -> None:

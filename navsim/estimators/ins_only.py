@@ -27,12 +27,12 @@ import numpy as np
 
 from ..errors import ConfigError
 from ._inserror import ErrorStateIns, ImuNoise
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 
 __all__ = ["InsOnly"]
 
 
-class InsOnly:
+class InsOnly(NoiseScalable):
     """Dead reckoning with the strapdown INS and the propagated error covariance.
 
     Parameters
@@ -46,6 +46,9 @@ class InsOnly:
     coning, sculling, position : str or None
         Strapdown method names (``navsim.strapdown`` registries); None = best available.
     """
+
+    NOISE_PROCESS = ('engine.Qc',)
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, covariance_period_s: float = 1.0, noise_scale: float = 1.0, bias_scale: float = 1.0,
                  coning: str | None = None, sculling: str | None = None, position: str | None = None) -> None:

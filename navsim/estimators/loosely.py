@@ -168,7 +168,7 @@ from ._inserror import (
     lever_arm_terms,
     nis_threshold,
 )
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 from .tightly import atmosphere_delays
 
 __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_model"]
@@ -258,7 +258,7 @@ def fix_error_model(gnss, height_m: float = 0.0, tau_s=(1200.0, 7200.0)) -> tupl
     return np.array([sigma_h, sigma_h, sigma_u]), np.array([tau_s[0], tau_s[0], tau_s[1]], dtype=float)
 
 
-class LooselyCoupledEkf:
+class LooselyCoupledEkf(NoiseScalable):
     """15-state closed-loop error-state EKF aided by GNSS position/velocity fixes.
 
     Parameters
@@ -305,6 +305,10 @@ class LooselyCoupledEkf:
     ----------
     engine : ErrorStateIns (after reset). diverged : bool. last_update : dict.
     """
+
+    NOISE_PROCESS = ('engine.Qc',)
+    NOISE_MEASUREMENT_SIGMA = ('sigma_pos', 'sigma_vel')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, use_velocity: bool = True, min_satellites: int = 4, noise_scale: float = 1.0,
                  bias_scale: float = 1.0, measurement_scale: float = 1.0, covariance_period_s: float | None = None,

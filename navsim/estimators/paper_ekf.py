@@ -238,7 +238,7 @@ from ..earth import SPHERICAL, EarthModel
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
 from . import paper_ekf_kernel as _kernel
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 
 __all__ = [
     "PaperEkf",
@@ -573,7 +573,7 @@ def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float
 
 
 # ============================================================================ estimator
-class PaperEkf:
+class PaperEkf(NoiseScalable):
     """Seed 003's reduced-state track-model filter (14)/(16); see the module docstring.
 
     Parameters
@@ -619,6 +619,10 @@ class PaperEkf:
     ``gyro_bias``. After :meth:`step_batch`, ``last_states`` / ``last_state_cov`` hold
     the batch's state vectors (n, ns) and covariances (n, ns, ns).
     """
+
+    NOISE_PROCESS = ('_qd', '_qa')
+    NOISE_MEASUREMENT_VARIANCE = ('_r_code', '_r_dopp')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, mode: str = "faithful", as_printed: bool | Iterable[str] = False,
                  cov_step_s: float | None = None, input_model: str | None = None,

@@ -192,7 +192,7 @@ from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import quat_to_mat
 from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 
 __all__ = [
     "TightlyCoupledEkf",
@@ -675,8 +675,12 @@ class TightlyCoupledOptions:
 
 
 # ============================================================================ filters
-class _TightlyCoupled:
+class _TightlyCoupled(NoiseScalable):
     """Shared machinery: reset, the INS between epochs, outputs; subclasses update."""
+
+    NOISE_PROCESS = ('engine.Qc',)
+    NOISE_MEASUREMENT_SIGMA = ('sigma_pr', 'sigma_rate')
+    # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     kind = "ekf"
 

@@ -73,7 +73,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -83,6 +83,9 @@ from ._common import frozen_array
 
 # The receiver's own fixes live receiver-side (the estimators use them too); re-exported here.
 from ..receiver import Fix, VelocityFix, least_squares_fix, velocity_fix
+
+if TYPE_CHECKING:
+    from ..types import NominalGnss
 
 __all__ = [
     "C_LIGHT",
@@ -812,6 +815,43 @@ class GnssErrorModel:
         if name == "ideal":
             return cls(pseudorange_sigma_m=0.0, doppler_sigma_mps=0.0, elevation_mask_deg=0.0)
         raise ConfigError("gnss.preset", f"one of {list(cls.PRESETS)}", name)
+
+    def nominal(self, lever_arm_b_m: Sequence[float] = (0.0, 0.0, 0.0)) -> NominalGnss:
+        """The receiver specification an estimator is told (:class:`navsim.types.NominalGnss`).
+
+        Code sigma = hypot(white noise, multipath sigma at the horizon); the clock, when
+        on, with initial sigmas max(|bias|, 100 m), max(|drift|, 1 m/s) and the PSDs
+        c^2 h0 / 2, 2 pi^2 c^2 h_-2 (Brown & Hwang sec. 9.3). Atmosphere: the designer
+        knows the receiver is single-frequency and uncorrected (the delays are on), not
+        the delays. A-priori values a receiver applies from standard models: ionosphere,
+        the constant (night-time) term of the GPS broadcast (Klobuchar) model,
+        5 ns = 1.50 m (navsim broadcasts no coefficients); sigma 4.5 m, DO-229D J.2.3
+        tau_vert at mid-latitudes (the bundled scenarios lie at 44-47 deg). Troposphere,
+        DO-229D A.4.2.4 at sea level and 45 deg, annual mean (P 1015.75 hPa,
+        T 283.15 K, e 11.66 hPa): 2.313 m dry + 0.135 m wet = 2.448 m; sigma 0.12 m,
+        DO-229D sigma_TVE. Thin shell at 350 km (Klobuchar), exponential height law with
+        the 8 km scale height of the standard atmosphere. ``lever_arm_b_m``: the antenna
+        lever arm as surveyed at installation (body axes, m).
+        """
+        from ..types import NominalGnss
+
+        clock = bool(self.clock_enabled)
+        iono, tropo = self.ionosphere_zenith_m > 0.0, self.troposphere_zenith_m > 0.0
+        return NominalGnss(
+            pseudorange_sigma_m=float(np.hypot(self.pseudorange_sigma_m, self.multipath_sigma_m)),
+            doppler_sigma_mps=float(self.doppler_sigma_mps),
+            clock_modelled=clock,
+            clock_bias_sigma_m=max(abs(self.clock_bias_m), 100.0) if clock else 0.0,
+            clock_drift_sigma_mps=max(abs(self.clock_drift_mps), 1.0) if clock else 0.0,
+            clock_phase_psd=C_LIGHT**2 * self.clock_h0 / 2.0 if clock else 0.0,
+            clock_freq_psd=2.0 * math.pi**2 * C_LIGHT**2 * self.clock_h_2 if clock else 0.0,
+            atmosphere_modelled=bool(iono or tropo),
+            ionosphere_zenith_m=5e-9 * C_LIGHT if iono else 0.0,
+            ionosphere_zenith_sigma_m=4.5 if iono else 0.0,
+            troposphere_zenith_m=2.448 if tropo else 0.0,
+            troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
+            lever_arm_b_m=tuple(float(x) for x in lever_arm_b_m),
+        )
 
     # ----------------------------------------------------------------- pieces
     @property

@@ -102,7 +102,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -111,6 +111,9 @@ from scipy.linalg import cholesky, hilbert
 from ..errors import ConfigError
 from . import _imu_kernel
 from ._common import frozen_array
+
+if TYPE_CHECKING:
+    from ..types import NominalImu
 
 __all__ = [
     "is_error_free",
@@ -131,6 +134,8 @@ __all__ = [
     "apply_imu_errors_batch",
     "imu_preset",
     "nominal_noise",
+    "nominal_imu",
+    "first_order_recursion",
 ]
 
 MAX_ORDER = 8
@@ -853,6 +858,10 @@ def _first_order_recursion(phi: NDArray, drive: NDArray, start: NDArray) -> NDAr
     return out
 
 
+first_order_recursion = _first_order_recursion
+"""Public name of the batched first-order recursion (used by the odometer's Gauss-Markov term)."""
+
+
 def _quantize(
     values: NDArray, lsb: NDArray, acc: NDArray, count: NDArray, start_index: int
 ) -> tuple[NDArray, NDArray, NDArray]:
@@ -1375,3 +1384,27 @@ def nominal_noise(model: ImuErrorModel) -> dict[str, Any]:
         result[f"{label}_scale_factor_sigma"] = np.full(3, rms_scale)
         result[f"{label}_quantization_lsb"] = sensor.quantization_lsb
     return result
+
+
+def nominal_imu(model: ImuErrorModel) -> NominalImu:
+    """The IMU datasheet an estimator is told (:class:`navsim.types.NominalImu`).
+
+    From :func:`nominal_noise`: RMS over the axes of the white-noise densities and rate
+    random walks; bias sigma = hypot(RMS of the constant + turn-on sigma, RMS of the
+    Gauss-Markov instability sigma); correlation time = the shortest of the axes.
+    """
+    from ..types import NominalImu
+
+    nominal = nominal_noise(model)
+
+    def rms(x: Any) -> float:
+        return float(np.sqrt(np.mean(np.square(x))))
+
+    return NominalImu(
+        gyro_arw=rms(nominal["gyro_arw"]), accel_vrw=rms(nominal["accel_vrw"]),
+        gyro_bias_sigma=float(np.hypot(rms(nominal["gyro_bias_sigma"]), rms(nominal["gyro_bias_instability_sigma"]))),
+        accel_bias_sigma=float(np.hypot(rms(nominal["accel_bias_sigma"]), rms(nominal["accel_bias_instability_sigma"]))),
+        gyro_bias_tau_s=float(np.min(nominal["gyro_bias_correlation_time_s"])),
+        accel_bias_tau_s=float(np.min(nominal["accel_bias_correlation_time_s"])),
+        gyro_rrw=rms(nominal["gyro_rate_random_walk"]), accel_rrw=rms(nominal["accel_rate_random_walk"]),
+    )

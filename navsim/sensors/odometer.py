@@ -89,13 +89,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
-from .imu import _first_order_recursion
+from .imu import first_order_recursion
+
+if TYPE_CHECKING:
+    from ..types import NominalOdometer
 
 __all__ = [
     "QUANTIZATION_BLOCK",
@@ -192,6 +195,20 @@ class OdometerModel:
     @property
     def has_slip(self) -> bool:
         return (self.slip_fraction > 0.0 or self.slide_fraction > 0.0) and math.isfinite(self.slip_accel_threshold_mps2)
+
+    def nominal(self) -> NominalOdometer:
+        """The datasheet an estimator is told (:class:`navsim.types.NominalOdometer`), never
+        the drawn errors: the larger of the slip and slide fractions, the slip threshold
+        (inf without slip)."""
+        from ..types import NominalOdometer
+
+        return NominalOdometer(
+            pulse_length_m=self.pulse_length_m, scale_factor_sigma=self.scale_factor_sigma,
+            scale_factor_gm_sigma=self.scale_factor_gm_sigma, scale_factor_tau_s=self.scale_factor_gm_tau_s,
+            noise_density_m_per_sqrt_s=self.noise_density_m_per_sqrt_s,
+            slip_fraction=max(self.slip_fraction, self.slide_fraction),
+            slip_accel_threshold_mps2=self.slip_accel_threshold_mps2 if self.has_slip else float("inf"),
+        )
 
     @classmethod
     def preset(cls, name: str) -> OdometerModel:
@@ -364,7 +381,7 @@ def simulate_odometer_batch(ds_true: ArrayLike, accel: ArrayLike, model: Odomete
     phi = math.exp(-dt / tau)
     drive = (sigma_g * math.sqrt(-math.expm1(-2.0 * dt / tau))) * z[:, :, 1]
     g_start = np.array([s.scale_factor_gm for s in states])
-    g_next = _first_order_recursion(np.asarray(phi), drive, g_start)  # (B, n): g_1..g_n
+    g_next = first_order_recursion(np.asarray(phi), drive, g_start)  # (B, n): g_1..g_n
     g_used = np.concatenate((g_start[:, None], g_next[:, :-1]), axis=1)
     turn_on = np.array([s.scale_factor_turn_on for s in states])
     scale = turn_on[:, None] + g_used  # (OD.2)

@@ -71,6 +71,9 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigError
+from .checks import check_dt as _dt
+from .checks import check_multi as _multi
+from .checks import check_sub as _sub
 
 __all__ = [
     "one_sample",
@@ -90,33 +93,6 @@ ConingFn = Callable[..., np.ndarray]
 
 
 # ----------------------------------------------------------------------------- input checks
-def _sub(dtheta_sub, m: int, name: str) -> np.ndarray:
-    if dtheta_sub is None:
-        raise ConfigError(f"{name}.dtheta_sub", f"array of shape (n, {m}, 3)", None)
-    arr = np.asarray(dtheta_sub, dtype=float)
-    if arr.ndim != 3 or arr.shape[1] != m or arr.shape[2] != 3:
-        raise ConfigError(f"{name}.dtheta_sub", f"array of shape (n, {m}, 3)", arr.shape)
-    return arr
-
-
-def _multi(dtheta_r, order: int, name: str, field: str = "dtheta_r") -> np.ndarray:
-    if dtheta_r is None:
-        raise ConfigError(f"{name}.{field}", f"array of shape (n, R>={order}, 3)", None)
-    arr = np.asarray(dtheta_r, dtype=float)
-    if arr.ndim != 3 or arr.shape[1] < order or arr.shape[2] != 3:
-        raise ConfigError(f"{name}.{field}", f"array of shape (n, R>={order}, 3)", arr.shape)
-    return arr
-
-
-def _dt(dt, name: str) -> float:
-    if dt is None:
-        raise ConfigError(f"{name}.dt", "the navigation step in seconds (> 0)", None)
-    value = float(dt)
-    if not (value > 0.0 and np.isfinite(value)):
-        raise ConfigError(f"{name}.dt", "a positive finite step in seconds", dt)
-    return value
-
-
 # ------------------------------------------------------------------------------ traditional
 def one_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     """Phi = DeltaTheta: no coning correction ((1.11) with deltaTheta_c = 0).

@@ -70,7 +70,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigError
-from .coning import _dt, _multi
+from .checks import check_dt as _dt
+from .checks import check_multi as _multi
 from .sculling import first_order, smoothing, two_sample
 
 __all__ = [

@@ -82,6 +82,7 @@ import math
 import numpy as np
 
 from ..earth import EarthModel
+from .state import InsSolution
 
 __all__ = ["DEFAULT_WINDOW", "prefix_quat_products", "integrate_scan"]
 
@@ -381,8 +382,6 @@ def integrate_scan(state, quat_body, dv_body, ds_body, rule, dt: float, earth: E
         n + 1 rows; the same discrete solution as the sequential integrator up to
         rounding.
     """
-    from .ins import InsSolution
-
     E = _Earth(earth)
     n = len(dv_body)
     qb = np.ascontiguousarray(np.asarray(quat_body, dtype=float).T)

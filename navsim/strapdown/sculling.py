@@ -71,7 +71,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .coning import _dt, _multi, _sub
+from .checks import check_dt as _dt
+from .checks import check_multi as _multi
+from .checks import check_sub as _sub
 
 __all__ = [
     "first_order",

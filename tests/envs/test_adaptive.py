@@ -14,7 +14,8 @@ import navsim.envs  # noqa: E402,F401
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from navsim import estimators  # noqa: E402
-from navsim.envs.adaptive import NOISE_HOOKS, NoiseAdapter, _get  # noqa: E402
+from navsim.envs.adaptive import NoiseAdapter  # noqa: E402
+from navsim.estimators.base import NoiseScaling, _get_path  # noqa: E402
 from navsim.errors import ConfigError  # noqa: E402
 
 OVER = {"timing": {"duration_s": 12.0}, "outages": {"windows_s": [[5.0, 8.0]]}}
@@ -32,19 +33,28 @@ def test_check_env_without_warnings():
 def test_noise_hooks_scale_the_estimator(name):
     env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, **OVER).unwrapped
     env.reset(seed=2)
-    hooks = env.adapter.hooks
-    assert hooks == NOISE_HOOKS[env.adapter.name]
+    est = env.estimator
+    assert isinstance(est, NoiseScaling)
+    q, r_var, r_sig = est.NOISE_PROCESS, est.NOISE_MEASUREMENT_VARIANCE, est.NOISE_MEASUREMENT_SIGMA
+    assert q or r_var or r_sig
+    base = {path: np.copy(_get_path(est, path)) for path in (*q, *r_var, *r_sig)}  # as the reset left them
     env.step(np.array([1.0, -0.5], dtype=np.float32))  # q x 10, r x 10^-0.5
-    q, r_var, r_sig = hooks
     for path in q:
-        assert np.allclose(_get(env.estimator, path), 10.0 * env.adapter.base[path])
+        assert np.allclose(_get_path(est, path), 10.0 * base[path], rtol=1e-15, atol=0)
     for path in r_var:
-        assert _get(env.estimator, path) == pytest.approx(10**-0.5 * env.adapter.base[path])
+        assert _get_path(est, path) == pytest.approx(10**-0.5 * base[path], rel=1e-15)
     for path in r_sig:
-        assert _get(env.estimator, path) == pytest.approx(10**-0.25 * env.adapter.base[path])
+        assert _get_path(est, path) == pytest.approx(10**-0.25 * base[path], rel=1e-15)
+    env.step(np.array([0.5, 0.5], dtype=np.float32))  # scales do not compound
+    for path in q:
+        assert np.allclose(_get_path(est, path), 10**0.5 * base[path], rtol=1e-15, atol=0)
     env.step(np.zeros(2, dtype=np.float32))  # back to the untuned filter
     for path in (*q, *r_var, *r_sig):
-        assert np.array_equal(_get(env.estimator, path), env.adapter.base[path])
+        assert np.array_equal(_get_path(est, path), base[path])
+    env.reset(seed=3)  # a new episode: the base is that of the new reset, not a scaled one
+    env.step(np.array([1.0, 1.0], dtype=np.float32))
+    for path in q:
+        assert np.allclose(_get_path(est, path), 10.0 * base[path], rtol=1e-15, atol=0)
 
 
 def _episode(action, name="lc-ekf", seed=1):

@@ -744,7 +744,8 @@ def test_spline_track_local_quintic_lambda_of_phi():
     its position, heading and curvature between the nodes (the observer needs lambda'')."""
     from navsim.earth import WGS84
     from navsim.estimators.paper_ekf import TrackFunctions, _quintic_hermite
-    from navsim.track import load_bundled_track, track_frame
+    from navsim.track import track_frame
+    from navsim.trackio import load_bundled_track
 
     # the quintic Hermite formula reproduces any quintic exactly
     c = RNG.normal(size=6)
