@@ -58,8 +58,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from navsim.errors import ConfigError
 from navsim.episode import step_batch
+from navsim.errors import ConfigError
 from navsim.estimators.base import NoiseScaling
 from navsim.naverror import local_level_error, position_error_norm
 

@@ -17,11 +17,11 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from .earth import earth_model
+from .estimators.base import Estimator
 from .scenario import Scenario
 from .sensors import imu as imu_mod
-from .earth import earth_model
 from .simulator import Chunk, Simulator, build_gnss_error_model, build_imu_model, build_track
-from .estimators.base import Estimator
 from .types import (
     Context,
     Estimate,
@@ -32,7 +32,9 @@ from .types import (
     Prior,
 )
 
-__all__ = ["make_context", "measurements", "measurement_batch", "step_batch", "EpisodeRecord", "EpisodeRecorder", "run_episode"]
+__all__ = ["make_context", "measurements", "measurement_batch", "step_batch", "EpisodeRecord", "EpisodeRecorder",
+           "run_episode"]
+
 
 def make_context(source: Scenario | Simulator) -> Context:
     """The estimator's context: map, Earth, time base and the nominal sensor specification.

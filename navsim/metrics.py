@@ -76,8 +76,8 @@ import numpy as np
 from scipy import stats
 
 from .errors import ConfigError
-from .naverror import local_level_error, wrap_angle
 from .estimators.base import STATE_LABELS
+from .naverror import local_level_error, wrap_angle
 from .rotations import mat_nb_from_hpr, mat_to_quat, quat_to_rotvec
 
 __all__ = [

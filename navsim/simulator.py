@@ -51,14 +51,14 @@ from .motion import (
     true_state,
 )
 from .scenario import Scenario
-from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
-from .truthgen import TruthGenerator
-from .validation import check_seed, check_steps, validate_scenario
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import odometer as odometer_mod
 from .sensors import outages as outage_mod
 from .threads import limited
+from .truthgen import TruthGenerator
+from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
+from .validation import check_seed, check_steps, validate_scenario
 
 __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile",
            "build_imu_model", "build_gnss", "build_gnss_error_model"]

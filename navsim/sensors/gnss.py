@@ -79,10 +79,10 @@ import numpy as np
 
 from ..earth import WGS84, EarthModel, mat_en
 from ..errors import ConfigError, check_nonnegative, file_value
-from ._common import frozen_array
 
 # The receiver's own fixes live receiver-side (the estimators use them too); re-exported here.
 from ..receiver import Fix, VelocityFix, least_squares_fix, velocity_fix
+from ._common import frozen_array
 
 if TYPE_CHECKING:
     from ..types import NominalGnss

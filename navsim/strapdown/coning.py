@@ -70,7 +70,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..errors import ConfigError
 from .checks import check_dt as _dt
 from .checks import check_multi as _multi
 from .checks import check_sub as _sub
