@@ -84,17 +84,16 @@ seed 0: -22.7 m as drawn, +1.6 m flipped, -10.6 m with the prior at the truth; s
 -45.4 / -13.6 / -29.5 m), with -7.4 m per mrad of initial heading error for lc-ekf (the
 same slope on both seeds). Seeds 0-3 happen to have positive initial heading errors
 (+0.93, +0.07, +1.23, +0.55 sigma), hence the same sign on every seed tried. Over seeds
-0-19 (paper-ekf; 0-18 for the others; covariance step 0.01 s) the signed end-of-outage
-latitude error is, mean +- standard error: paper-ekf -5.5 +- 3.9 m (1.4 SE), without the
-observer -9.7 +- 6.0 m (1.6 SE), full-state filter -9.4 +- 4.7 m (2.0 SE), lc-ekf -9.9 +-
-4.8 m (2.1 SE); regressed on the drawn initial heading, pitch and roll errors the
-intercepts are -2.7 +- 2.9, -4.2 +- 2.9, -5.1 +- 2.6 and -5.5 +- 2.6 m (0.9-2.1 SE), with
--7 to -10 m per mrad of initial heading error and at most 3 m/mrad for pitch (7.5 for
-roll without the observer). So no corrected filter shows a bias significant beyond about
-2 SE (the two free-inertial filters sit at 2.0-2.1 SE: a residual of about -5 m against a
-mean |error| of 17 m is not excluded at this seed count; ``--seeds`` for more). The
-printed centrifugal sign, by contrast, is a real bias: +17.6 +- 3.9 m raw, +20.3 +- 2.9 m
-regressed, a deterministic +24-26 m shift against the corrected filter on every seed
+0-19 (covariance step 0.01 s) the signed end-of-outage latitude error is, mean +- standard
+error: paper-ekf -5.5 +- 3.9 m (1.4 SE), without the observer -9.5 +- 5.7 m (1.7 SE),
+full-state filter -8.9 +- 4.5 m (2.0 SE), lc-ekf -9.4 +- 4.6 m (2.0 SE); regressed on the
+drawn initial heading, pitch and roll errors the intercepts are -2.7 +- 2.9, -5.2 +- 2.8,
+-5.1 +- 2.4 and -5.5 +- 2.4 m (0.9-2.3 SE), with -7 to -10 m per mrad of initial heading
+error and at most 2.3 m/mrad for pitch (7.5 for roll without the observer). So paper-ekf
+shows no bias; the two free-inertial filters sit at 2.1-2.3 SE after the regression: a
+residual of about -5 m against a mean |error| of 16-17 m is not excluded at this seed
+count (``--seeds`` for more). The printed centrifugal sign, by contrast, is a real bias:
++19.0 +- 4.0 m raw, +21.9 +- 3.0 m regressed, a deterministic +24-26 m shift against the corrected filter on every seed
 (its 0.034 m/s^2 error is absorbed before the outage as a 3.45 mrad tilt, which stops
 matching as the track turns during the outage). It "did better" on seeds 0-2 only
 because that shift cancels their negative heading-driven drift.
