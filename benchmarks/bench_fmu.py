@@ -26,30 +26,14 @@ from __future__ import annotations
 import statistics
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 
-_EMPTY_SLAVE = textwrap.dedent('''\
-    from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+from _empty_fmu import build_empty_fmu
 
-
-    class EmptyBench(Fmi2Slave):
-        """One output, nothing computed: the floor of a pythonfmu doStep."""
-
-        def __init__(self, **kwargs):
-            super().__init__(**kwargs)
-            self.y = 0.0
-            self.register_variable(Real("y", causality=Fmi2Causality.output))
-
-        def do_step(self, current_time, step_size):
-            return True
-    ''')
 
 
 def main(steps: int = 1000, rounds: int = 3) -> None:
-    from pythonfmu.builder import FmuBuilder
-
     from navsim import estimators
     from navsim.episode import run_episode
     from navsim.fmu.build import build_fmu
@@ -67,9 +51,7 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
         times.setdefault(key, []).append(value)
 
     with tempfile.TemporaryDirectory() as tmp:
-        script = Path(tmp) / "empty_bench.py"
-        script.write_text(_EMPTY_SLAVE)
-        empty = FmuBuilder.build_FMU(script, dest=tmp)
+        empty = build_empty_fmu(tmp)
         plants = {fmi: build_fmu(scenario, "plant", fmi, Path(tmp) / f"plant{fmi}.fmu") for fmi in (2, 3)}
         est_path = build_fmu(scenario, "estimator", 2, Path(tmp) / "est.fmu", estimator="lc-ekf")
         for _ in range(rounds):

@@ -41,9 +41,10 @@ import argparse
 import os
 import statistics
 import tempfile
-import textwrap
 import time
 from pathlib import Path
+
+from _empty_fmu import build_empty_fmu
 
 import numpy as np
 
@@ -142,26 +143,9 @@ def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, 
     return lines, batch_cost
 
 
-_EMPTY_SLAVE = textwrap.dedent('''\
-    from pythonfmu import Fmi2Causality, Fmi2Slave, Real
-
-
-    class EmptyBench(Fmi2Slave):
-        """One output, nothing computed: the floor of a pythonfmu doStep."""
-
-        def __init__(self, **kwargs):
-            super().__init__(**kwargs)
-            self.y = 0.0
-            self.register_variable(Real("y", causality=Fmi2Causality.output))
-
-        def do_step(self, current_time, step_size):
-            return True
-    ''')
 
 
 def fmu_table(steps: int, rounds: int, lc_batch_s: float | None) -> list[str]:
-    from pythonfmu.builder import FmuBuilder
-
     from navsim.fmu.build import build_fmu
     from navsim.fmu.master import FmuInstance, _Plan
     from navsim.scenario import load_scenario
@@ -172,9 +156,7 @@ def fmu_table(steps: int, rounds: int, lc_batch_s: float | None) -> list[str]:
     times: dict[str, list[float]] = {}
     clock = time.perf_counter  # the FMU runs in this process; wall time of the calls
     with tempfile.TemporaryDirectory() as tmp:
-        script = Path(tmp) / "empty_bench.py"
-        script.write_text(_EMPTY_SLAVE)
-        empty = FmuBuilder.build_FMU(script, dest=tmp)
+        empty = build_empty_fmu(tmp)
         plant_path = build_fmu(scenario, "plant", 2, Path(tmp) / "plant.fmu")
         est_path = build_fmu(scenario, "estimator", 2, Path(tmp) / "est.fmu", estimator="lc-ekf")
         for _ in range(rounds):
