@@ -387,6 +387,31 @@ class _RuntimeBase:
         self.terminated = True
 
 
+    def _step_ticks(self, t: float, h: float) -> int:
+        """The number of simulator ticks of the communication step (t, h), or FmuError with
+        the reason: called before initialisation or after terminate, a communication point
+        that is not the FMU's time, a step that is not a whole number (>= 1) of ticks, or one
+        that goes past the episode's end."""
+        if not self.initialised:
+            raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
+        if self.terminated:
+            raise FmuError("doStep after terminate: reset or instantiate the FMU again")
+        tick_s = self.timing.tick_s
+        now = self.tick * tick_s
+        if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
+            raise FmuError(f"communication point t = {t!r} s does not match the FMU's time {now!r} s "
+                           "(steps must follow each other without gaps)")
+        ratio = h / tick_s if math.isfinite(h) else math.nan
+        n = round(ratio) if math.isfinite(ratio) else 0
+        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
+            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
+                           f"(tick = {tick_s!r} s; e.g. the navigation step {self.timing.nav_period_s!r} s)")
+        if self.tick + n > self.end_tick:
+            raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
+                           f"({self.timing.duration_s!r} s)")
+        return n
+
+
 class PlantRuntime(_RuntimeBase):
     """The plant FMU: the core :class:`~navsim.simulator.Simulator` behind FMI calls."""
 
@@ -453,24 +478,7 @@ class PlantRuntime(_RuntimeBase):
     # -- stepping -----------------------------------------------------------------------
     def check_step(self, t: float, h: float) -> int:
         """The number of ticks of a communication step, or FmuError with the reason."""
-        if not self.initialised:
-            raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
-        if self.terminated:
-            raise FmuError("doStep after terminate: reset or instantiate the FMU again")
-        tick_s = self.timing.tick_s
-        now = self.tick * tick_s
-        if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
-            raise FmuError(f"communication point t = {t!r} s does not match the FMU's time {now!r} s "
-                           "(steps must follow each other without gaps)")
-        ratio = h / tick_s if math.isfinite(h) else math.nan
-        n = round(ratio) if math.isfinite(ratio) else 0
-        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
-            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
-                           f"(tick = {tick_s!r} s; e.g. the navigation step {self.timing.nav_period_s!r} s)")
-        if self.tick + n > self.end_tick:
-            raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
-                           f"({self.timing.duration_s!r} s)")
-        return n
+        return self._step_ticks(t, h)
 
     def do_step(self, t: float, h: float) -> None:
         """Advance one communication step (FmuError: refused, state unchanged)."""
@@ -622,23 +630,8 @@ class EstimatorRuntime(_RuntimeBase):
         """``(ticks, k)`` of a communication step: its length in ticks and the index of the
         plant step to process now (``None``: no new plant step); FmuError with the reason
         when the step or the plant's counter breaks the rules of the module docstring."""
-        if not self.initialised:
-            raise FmuError("doStep before initialisation: call enterInitializationMode/exitInitializationMode first")
-        if self.terminated:
-            raise FmuError("doStep after terminate: reset or instantiate the FMU again")
-        tick_s, dt = self.timing.tick_s, self.timing.nav_period_s
-        now = self.tick * tick_s
-        if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
-            raise FmuError(f"communication point t = {t!r} s does not match the estimator's time {now!r} s "
-                           "(steps must follow each other without gaps)")
-        ratio = h / tick_s if math.isfinite(h) else math.nan
-        n = round(ratio) if math.isfinite(ratio) else 0
-        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
-            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
-                           f"(tick = {tick_s!r} s, navigation step {dt!r} s)")
-        if self.tick + n > self.end_tick:
-            raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
-                           f"({self.timing.duration_s!r} s)")
+        n = self._step_ticks(t, h)
+        dt = self.timing.nav_period_s
         c = int(self.store.read("time.step"))
         done = self.processed
         n0, n1 = self.tick // self.nav_ticks, (self.tick + n) // self.nav_ticks
