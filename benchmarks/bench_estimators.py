@@ -34,7 +34,7 @@ import numpy as np
 
 from navsim.episode import make_context, measurement_batch
 from navsim.estimators import available, make
-from navsim.estimators import paper_ekf_kernel
+from navsim.estimators.paper_ekf import kernel as paper_ekf_kernel
 from navsim.estimators.paper_ekf import PaperEkf
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator

@@ -1,6 +1,6 @@
 """The compiled propagation engine of the seed-003 filter against the reference engine.
 
-``PaperEkf(engine="compiled")`` (navsim.estimators.paper_ekf_kernel, numba) runs the same
+``PaperEkf(engine="compiled")`` (navsim.estimators.paper_ekf.kernel, numba) runs the same
 equations as ``engine="python"`` (the reference: the step-by-step RK4 of the state and
 Riccati equations in plain Python and NumPy) with the matrix products as explicit loops
 instead of BLAS calls. So the two agree to rounding, not bit for bit.
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from navsim.episode import make_context, measurement_batch, measurements
-from navsim.estimators import paper_ekf_kernel as kernel
+from navsim.estimators.paper_ekf import kernel
 from navsim.estimators.paper_ekf import PaperEkf
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator

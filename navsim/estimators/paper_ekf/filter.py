@@ -188,7 +188,7 @@ Numerical choices
   ``R' = [R; I]^T H [R; I]`` with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h /
   sigma``, ``Abar = A - S h^T / sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small
   matrix products per RK4 stage; same numbers as the direct form to rounding. The
-  compiled engine (``"compiled"``, :mod:`navsim.estimators.paper_ekf_kernel`, numba,
+  compiled engine (``"compiled"``, :mod:`navsim.estimators.paper_ekf.kernel`, numba,
   optional extra ``fast``; ``"auto"`` picks it when numba is installed) runs the same
   expressions in the same order for the steps between GNSS epochs, with the matrix
   products as loops, and hands the start-up sub-steps, failures and epoch updates (16)
@@ -234,11 +234,11 @@ from typing import Iterable
 import numpy as np
 from numpy.polynomial import Polynomial
 
-from ..earth import SPHERICAL, EarthModel
-from ..errors import ConfigError
-from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from . import paper_ekf_kernel as _kernel
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from ...earth import SPHERICAL, EarthModel
+from ...errors import ConfigError
+from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
+from . import kernel as _kernel
+from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
 
 __all__ = [
     "PaperEkf",
@@ -276,7 +276,7 @@ class PaperEkfConfig:
         (13) switched off - between epochs the state follows (7)-(8) open loop with the
         Riccati equation ``R' = A R + R A^T + Q`` (no gain, no Z_ax in (16)); the epoch
         update (16) uses the pseudoranges and Dopplers alone. Everything else identical.
-    engine : "auto" (the compiled engine :mod:`navsim.estimators.paper_ekf_kernel` when
+    engine : "auto" (the compiled engine :mod:`navsim.estimators.paper_ekf.kernel` when
         numba is installed, else the reference), "python" (the reference engine, plain
         Python and NumPy) or "compiled" (ConfigError without numba).
     """
@@ -362,7 +362,7 @@ class TrackFunctions:
     """
 
     def __init__(self, track, node_step_m: float = 10.0):
-        from ..track import PiecewisePolynomialTrack, PolynomialTrack
+        from ...track import PiecewisePolynomialTrack, PolynomialTrack
 
         self.track = track
         self.hermite = False
@@ -608,7 +608,7 @@ class PaperEkf(NoiseScalable):
         of the paper's central claim.
     engine : {"auto", "python", "compiled"}
         Propagation engine between GNSS epochs: "python" the reference (plain Python and
-        NumPy), "compiled" :mod:`navsim.estimators.paper_ekf_kernel` (numba, optional extra
+        NumPy), "compiled" :mod:`navsim.estimators.paper_ekf.kernel` (numba, optional extra
         ``fast``; the same equations, equal to rounding), "auto" the compiled one when
         numba is installed.
 
@@ -1403,7 +1403,7 @@ class PaperEkf(NoiseScalable):
         return self._run_compiled(t_end, inp, dtheta_r, dv_r, epochs, steps)
 
     def _kernel_args(self) -> tuple:
-        """Constants of :func:`navsim.estimators.paper_ekf_kernel.advance_py` (set-up)."""
+        """Constants of :func:`navsim.estimators.paper_ekf.kernel.advance_py` (set-up)."""
         k = _kernel
         imu = self.context.imu
         c = np.zeros(10)

@@ -1,7 +1,7 @@
-"""Compiled propagation engine of the seed-003 filter (:mod:`navsim.estimators.paper_ekf`).
+"""Compiled propagation engine of the seed-003 filter (:mod:`navsim.estimators.paper_ekf.filter`).
 
 The continuous filter (14) between GNSS epochs, step by step as in the reference engine
-(:meth:`PaperEkf._one_step <navsim.estimators.paper_ekf.PaperEkf>`): at the start of each
+(:meth:`PaperEkf._one_step <navsim.estimators.paper_ekf.filter.PaperEkf>`): at the start of each
 covariance interval the coefficients of (14) at the current state (the stage values F and
 Z_ax - H_a, A = dF/dY, dH_a/dY, Q, the correlation F1 D_A H_w^T and H_w D_a H_w^T; the
 fused scalar pass with the analytic phi-derivatives on the sphere and the complex step on
