@@ -1,7 +1,8 @@
 """Cost per navigation step of the filterpy-based baselines against navsim's own engines.
 
 Rows: lc-ekf vs lc-ekf-filterpy and tc-ekf vs tc-ekf-filterpy (filterpy's
-ExtendedKalmanFilter.update doing the Kalman arithmetic, see
+ExtendedKalmanFilter.update doing the Kalman arithmetic), tc-ukf vs tc-ukf-filterpy
+(filterpy's UnscentedKalmanFilter.update and MerweScaledSigmaPoints; see
 navsim/estimators/filterpy_based.py) on paper-2012, estimator CPU time per navigation step
 (``EpisodeRecord.step_time_s``, process CPU), median of interleaved repeats in one process,
 and the largest difference of the position estimates.
@@ -20,7 +21,7 @@ from navsim import estimators
 from navsim.episode import run_episode
 from navsim.scenario import load_scenario
 
-PAIRS = (("lc-ekf", "lc-ekf-filterpy"), ("tc-ekf", "tc-ekf-filterpy"))
+PAIRS = (("lc-ekf", "lc-ekf-filterpy"), ("tc-ekf", "tc-ekf-filterpy"), ("tc-ukf", "tc-ukf-filterpy"))
 
 
 def main() -> None:

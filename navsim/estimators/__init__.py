@@ -39,6 +39,7 @@ _REGISTRY: dict[str, str] = {
     "full-state-ekf": "navsim.estimators.full_state:FullStateEkf",
     "lc-ekf-filterpy": "navsim.estimators.filterpy_based:FilterpyLcEkf",
     "tc-ekf-filterpy": "navsim.estimators.filterpy_based:FilterpyTcEkf",
+    "tc-ukf-filterpy": "navsim.estimators.filterpy_based:FilterpyTcUkf",
 }
 
 # name -> (importable module it needs, the install hint shown when it is missing)
@@ -46,6 +47,7 @@ _REQUIRES: dict[str, tuple[str, str]] = {
     "gnss-cv": ("filterpy", "pip install 'navsim-track[filters]'"),
     "lc-ekf-filterpy": ("filterpy", "pip install 'navsim-track[filters]'"),
     "tc-ekf-filterpy": ("filterpy", "pip install 'navsim-track[filters]'"),
+    "tc-ukf-filterpy": ("filterpy", "pip install 'navsim-track[filters]'"),
 }
 
 # "package.module:Factory" or "path/to/file.py:Factory"

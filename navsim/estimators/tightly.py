@@ -201,6 +201,7 @@ __all__ = [
     "predict_observables",
     "observation_jacobian",
     "sigma_points",
+    "guarded_cholesky",
     "unscented_update",
     "unscented_predict",
     "ionosphere_obliquity",
@@ -444,6 +445,36 @@ def atmosphere_jacobian(lat: float, lon: float, h: float, sat_pos_e, ionosphere_
 
 
 # ============================================================================ sigma points
+def guarded_cholesky(A: np.ndarray) -> tuple[np.ndarray, int]:
+    """Lower square root L (L L^T = A) of a covariance-like matrix, and a fallback count.
+
+    The Cholesky factor of ``A`` restricted to the states with non-zero variance (the
+    others get zero rows and columns); on failure jitter is added (1e-12, 1e-9, 1e-6 of
+    the largest variance) and, last, an eigen-decomposition with clipped eigenvalues is
+    used (then L is not triangular, but L L^T is still the clipped A).
+    """
+    n = len(A)
+    active = np.flatnonzero(np.diag(A) > 0.0)
+    L = np.zeros((n, n))
+    fallbacks = 0
+    if active.size:
+        B = A[np.ix_(active, active)]
+        B = 0.5 * (B + B.T)
+        scale = float(np.max(np.diag(B)))
+        factor = None
+        for jitter in (0.0, 1e-12, 1e-9, 1e-6):
+            try:
+                factor = np.linalg.cholesky(B + jitter * scale * np.eye(active.size) if jitter else B)
+                break
+            except np.linalg.LinAlgError:
+                fallbacks += 1
+        if factor is None:  # eigen-decomposition, negative eigenvalues clipped
+            w, v = np.linalg.eigh(B)
+            factor = v * np.sqrt(np.clip(w, 0.0, None))
+        L[np.ix_(active, active)] = factor
+    return L, fallbacks
+
+
 def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
     """Scaled symmetric sigma points (2n+1, n) with weights, and a fallback count.
 
@@ -458,25 +489,7 @@ def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: floa
     n = len(mean)
     lam = alpha * alpha * (n + kappa) - n
     c = n + lam
-    d = np.diag(P)
-    active = np.flatnonzero(d > 0.0)
-    L = np.zeros((n, n))
-    fallbacks = 0
-    if active.size:
-        A = c * P[np.ix_(active, active)]
-        A = 0.5 * (A + A.T)
-        scale = float(np.max(np.diag(A)))
-        factor = None
-        for jitter in (0.0, 1e-12, 1e-9, 1e-6):
-            try:
-                factor = np.linalg.cholesky(A + jitter * scale * np.eye(active.size) if jitter else A)
-                break
-            except np.linalg.LinAlgError:
-                fallbacks += 1
-        if factor is None:  # eigen-decomposition, negative eigenvalues clipped
-            w, v = np.linalg.eigh(A)
-            factor = v * np.sqrt(np.clip(w, 0.0, None))
-        L[np.ix_(active, active)] = factor
+    L, fallbacks = guarded_cholesky(c * P)
     X = np.empty((2 * n + 1, n))
     X[0] = mean
     X[1:n + 1] = mean + L.T
@@ -957,6 +970,9 @@ class TightlyCoupledUkf(_TightlyCoupled):
     """
 
     kind = "ukf"
+    # (mean, P, hx, z, R, alpha, beta, kappa) -> (dx, P_new, nis, fallbacks);
+    # navsim.estimators.filterpy_based replaces it
+    unscented_update = staticmethod(unscented_update)
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
         st, eng = self.engine.state, self.engine
@@ -1000,6 +1016,7 @@ class TightlyCoupledUkf(_TightlyCoupled):
             return np.concatenate([rho, rate], axis=1) if doppler else rho
 
         opt = self.options
-        dx, P_new, nis, fallbacks = unscented_update(np.zeros(len(P)), P, hx, z, R, opt.alpha, opt.beta, opt.kappa)
+        dx, P_new, nis, fallbacks = self.unscented_update(np.zeros(len(P)), P, hx, z, R, opt.alpha, opt.beta,
+                                                          opt.kappa)
         self.cholesky_fallbacks += fallbacks
         return dx, P_new, nis
