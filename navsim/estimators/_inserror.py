@@ -745,6 +745,8 @@ class ErrorStateIns:
         self.interval_steps = int(interval_steps)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
         self._resolved: dict = {}  # input shapes -> resolved (coning, sculling, position)
+        self._kernel = None  # (compiled one-step kernel, Earth constants, step constants, dummy), on first use
+        self._vec = None  # (13,) state array of the compiled one-step path, when it holds the state
         self.estimate_biases = bool(estimate_biases)
         self.Qc = noise_density(noise)
         self.state = state_from_prior(prior)
@@ -775,6 +777,7 @@ class ErrorStateIns:
     def state(self, value: InsState) -> None:
         self._state = value
         self._flat = None
+        self._vec = None
 
     def _floats(self) -> tuple:
         """The state as Python floats: (lat, lon, h, velocity (3,), quat (4,), compensation)."""
@@ -859,6 +862,55 @@ class ErrorStateIns:
                               self.dt, **self.methods)
         return StepTerms(*terms[:3], None, *terms[3:], self.dt)
 
+    def advance_step(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> tuple[np.ndarray, np.ndarray]:
+        """``advance_body(prepare_step(...))`` of one step from a
+        :class:`~navsim.estimators.base.Measurement`'s arrays: rows (1, 9), covariance (1, 9, 9).
+
+        With numba and the methods of :data:`navsim.strapdown.onestep.ONE_STEP_METHODS`
+        (the default with multiple integrals of order >= 4) the whole step (strapdown terms,
+        bias removal, the INS step, the solution row and the specific force) is one
+        compiled call, :func:`navsim.strapdown.compiled.one_step`: the operations of the
+        float path in the same order, so the same numbers; otherwise the float path.
+        """
+        key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
+               dtheta_r.shape, dv_r.shape)
+        methods = self._resolved.get(key)
+        if (methods is None or (dtheta_sub is None) != (dv_sub is None) or tuple(methods) not in _one.ONE_STEP_METHODS
+                or key[2][0] < 4 or key[3][0] < 4 or not _compiled.available()):
+            return self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+        if self._pending is not None:
+            self._start_interval(self._pending)
+        kern = self._kernel
+        if kern is None:
+            kern = self._kernel = (_compiled.step_kernel(), _compiled.earth_constants(self.earth),
+                                   _compiled.step_constants(self.dt), np.zeros((1, 3)))
+        vec = self._vec
+        if vec is None:
+            lat, lon, h, velocity, quat, compensation = self._floats()
+            vec = np.array([lat, lon, h, *compensation, *velocity, *quat], dtype=float)
+        out = np.empty(12)
+        use_sub = dtheta_sub is not None
+        kern[0](kern[1], kern[2], dtheta_r, dv_r, dtheta_sub if use_sub else kern[3], dv_sub if use_sub else kern[3],
+                use_sub, self.gyro_bias, self.accel_bias, vec, self.dt, out)
+        v = vec.tolist()
+        self._flat = (v[0], v[1], v[2], v[6:9], v[9:13], (v[3], v[4], v[5]))
+        self._state = None
+        self._vec = vec
+        if not all(map(math.isfinite, v[:3] + v[6:9])):
+            self._vec = None
+            self.state  # noqa: B018  (validates: the error of the array path)
+        f = out[9:].tolist()
+        fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
+        self._f_sum = [fs[0] + f[0], fs[1] + f[1], fs[2] + f[2]]
+        self._f_count += 1
+        cov = self._step_covariance()
+        self._after_steps(1)
+        return out[None, :9], cov
+
+    def _after_steps(self, n: int) -> None:
+        """Hook of subclasses whose own means follow the INS steps (called by the compiled
+        one-step path; their ``advance_body`` calls it too)."""
+
     def advance(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> tuple[np.ndarray, np.ndarray]:
         """Process n navigation steps of IMU data (arrays as in :class:`MeasurementBatch`).
 
@@ -936,6 +988,7 @@ class ErrorStateIns:
         (lat, lon, h), velocity, quat = pos[1], vel[1], quats[1]
         self._flat = (lat, lon, h, velocity, quat, compensation)
         self._state = None
+        self._vec = None
         ve, vn, vu = velocity
         if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(h) and math.isfinite(ve)
                 and math.isfinite(vn) and math.isfinite(vu)):
@@ -955,6 +1008,10 @@ class ErrorStateIns:
         self._f_sum = [fs[0] + (d0 + q0 * u0 + (q2 * u2 - q3 * u1)), fs[1] + (d1 + q0 * u1 + (q3 * u0 - q1 * u2)),
                        fs[2] + (d2 + q0 * u2 + (q1 * u1 - q2 * u0))]
         self._f_count += 1
+        return rows, self._step_covariance()
+
+    def _step_covariance(self) -> np.ndarray:
+        """The navigation block (1, 9, 9) of P after one more step of the interval (one-step paths)."""
         if self._nav_block is None:
             # P9(tau) = (tau^p)_p @ coefficients at every step of the interval in one product,
             # as advance_body does for the steps of a batch
@@ -967,7 +1024,7 @@ class ErrorStateIns:
         if self._j == self.interval_steps:
             self._pending = self._full_covariance(self._j)
         self.steps += 1
-        return rows, cov
+        return cov
 
     # -- measurement update --------------------------------------------------------------
     def _feed_back(self, dx: np.ndarray) -> None:

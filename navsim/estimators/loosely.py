@@ -422,7 +422,7 @@ class LooselyCoupledEkf(NoiseScalable):
             raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
         odo = getattr(m, "odometer_ds_m", None)
         if m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0):
-            rows, cov = eng.advance_body(eng.prepare_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r))
+            rows, cov = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
             if self._odo is not None:
                 self._odometer_accumulate(rows, None if odo is None else (odo,), 0, 1)
             self.diverged = self.diverged or eng.diverged

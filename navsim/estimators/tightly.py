@@ -613,14 +613,19 @@ class _ClockEngine(AuxBlocksIns):
         give the same numbers bit for bit on any CPU.
         """
         rows, cov = super().advance_body(body, start, stop)
-        self._since_update += len(rows)
+        self._after_steps(len(rows))
+        return rows, cov
+
+    def _after_steps(self, n: int) -> None:
+        """The clock (TC.1) and atmosphere (TC.5) means after n more steps since the update
+        (also called by the compiled one-step path of :meth:`ErrorStateIns.advance_step`)."""
+        self._since_update += n
         tau = self._since_update * self.dt
         if self.with_clock:  # (TC.1) mean: bias + drift tau
             c0 = self._clock_at_update
             self.clock = np.array([c0[0] + c0[1] * tau, c0[1]])
         if self.with_atmosphere:  # (TC.5) mean: the residual decays towards the a-priori value
             self.atm = self.atm_apriori + (self._atm_at_update - self.atm_apriori) * np.exp(-tau / self._atm_tau)
-        return rows, cov
 
     def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
         """Closed-loop feedback of an estimated error dx and restart of the interval."""
@@ -837,7 +842,7 @@ class _TightlyCoupled(NoiseScalable):
         operations, see :meth:`ErrorStateIns.advance_body`)."""
         m = measurement
         if m.gnss is None and self.engine is not None:
-            rows, c = self.engine.advance_body(self.engine.prepare_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r))
+            rows, c = self.engine.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
             self.last_extra = self._extra()
             lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
             return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=c[0],

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-__all__ = ["available", "earth_constants", "kernel", "run"]
+__all__ = ["available", "earth_constants", "kernel", "one_step", "run", "step_constants", "step_kernel"]
 
 
 def earth_constants(earth) -> np.ndarray:
@@ -152,8 +152,128 @@ def run(c, start, quat_body, dv_body, ds_body, exact, trapezoid, dt, pos, vel, q
     comp[0], comp[1], comp[2] = k_lat, k_lon, k_h
 
 
+def step_constants(dt: float) -> np.ndarray:
+    """The coefficients of :func:`navsim.strapdown.onestep.one_step_terms` for step ``dt``
+    (computed here in Python, with the same ``**`` as there), in the order :func:`one_step` reads."""
+    t = float(dt)
+    return np.array([44.0 / t**2, 6.0 / t, 12.0 / t**2, 18.0 / t**2, 1.5 / t, 30.0 / t**3,
+                     2.0 * t / 3.0, 0.5 * t, 6.0 / t**2, 12.0 / t**3, 4.0 / t, 6.0 / t**2, 12.0 / t**3,
+                     t / 24.0, t * t, 0.5 * t * t, t / 6.0])
+
+
+def one_step(c, k, dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, gyro_bias, accel_bias, state, dt, out):
+    """One navigation step of the error-state INS on the raw increments of the step.
+
+    The float forms of :func:`navsim.strapdown.onestep.one_step_terms` (coning
+    ``invariant``, sculling ``invariant-4.4``, position ``exact-invariant``), of
+    :meth:`navsim.estimators._inserror.StepTerms.compensated` (bias removal),
+    :func:`navsim.strapdown.onestep.quat_from_rotvec`, then one step of :func:`run` and the
+    solution row and specific force of ``ErrorStateIns._advance_step``: the same operations
+    in the same order, so the same numbers as the array path (the coefficients ``k`` from
+    :func:`step_constants`, computed by Python as there).
+
+    ``state`` (13,) = (lat, lon, h, k_lat, k_lon, k_h, vE, vN, vU, q0..q3) is advanced in
+    place; ``out`` (12,) receives the solution row (lat, lon, h, vE, vN, vU, heading,
+    pitch, roll) and ``C(k+1) (DV - b_a T)`` (3,), the specific-force increment in ENU.
+    """
+    c44, c6, c12, c18, c15, c30 = k[0], k[1], k[2], k[3], k[4], k[5]
+    k23, k12, s6, s12 = k[6], k[7], k[8], k[9]
+    r4, r6, r12, q24 = k[10], k[11], k[12], k[13]
+    TT, h2, t6 = k[14], k[15], k[16]
+    a1, b1, c1 = dtheta_r[0, 0], dtheta_r[0, 1], dtheta_r[0, 2]
+    a2, b2, c2 = dtheta_r[1, 0], dtheta_r[1, 1], dtheta_r[1, 2]
+    a3, b3, c3 = dtheta_r[2, 0], dtheta_r[2, 1], dtheta_r[2, 2]
+    a4, b4, c4 = dtheta_r[3, 0], dtheta_r[3, 1], dtheta_r[3, 2]
+    e1, f1, g1 = dv_r[0, 0], dv_r[0, 1], dv_r[0, 2]
+    e2, f2, g2 = dv_r[1, 0], dv_r[1, 1], dv_r[1, 2]
+    e3, f3, g3 = dv_r[2, 0], dv_r[2, 1], dv_r[2, 2]
+    e4, f4, g4 = dv_r[3, 0], dv_r[3, 1], dv_r[3, 2]
+    # coning (4.8)
+    ux, uy, uz = c44 * a3 - 3.0 * a1, c44 * b3 - 3.0 * b1, c44 * c3 - 3.0 * c1
+    wx, wy, wz = a1 - c6 * a2 + c12 * a3, b1 - c6 * b2 + c12 * b3, c1 - c6 * c2 + c12 * c3
+    p0 = a1 + (c18 * (b1 * c3 - c1 * b3) - c15 * (b2 * uz - c2 * uy) - c30 * (wy * c4 - wz * b4))
+    p1 = b1 + (c18 * (c1 * a3 - a1 * c3) - c15 * (c2 * ux - a2 * uz) - c30 * (wz * a4 - wx * c4))
+    p2 = c1 + (c18 * (a1 * b3 - b1 * a3) - c15 * (a2 * uy - b2 * ux) - c30 * (wx * b4 - wy * a4))
+    # sculling (4.4)
+    ux, uy, uz = a2 - k23 * a1, b2 - k23 * b1, c2 - k23 * c1
+    wx, wy, wz = a2 - k12 * a1, b2 - k12 * b1, c2 - k12 * c1
+    v0 = e1 + ((b1 * g1 - c1 * f1) + s6 * (uy * g2 - uz * f2) - s12 * (wy * g3 - wz * f3))
+    v1 = f1 + ((c1 * e1 - a1 * g1) + s6 * (uz * e2 - ux * g2) - s12 * (wz * e3 - wx * g3))
+    v2 = g1 + ((a1 * f1 - b1 * e1) + s6 * (ux * f2 - uy * e2) - s12 * (wx * f3 - wy * e3))
+    # position (5.2)-(5.4)
+    ux, uy, uz = r4 * a1 - r6 * a2, r4 * b1 - r6 * b2, r4 * c1 - r6 * c2
+    wx, wy, wz = r6 * a1 - r12 * a2, r6 * b1 - r12 * b2, r6 * c1 - r12 * c2
+    s0 = e2 + ((b1 * g2 - c1 * f2) - 2.0 * (uy * g3 - uz * f3) + 3.0 * (wy * g4 - wz * f4))
+    s1 = f2 + ((c1 * e2 - a1 * g2) - 2.0 * (uz * e3 - ux * g3) + 3.0 * (wz * e4 - wx * g4))
+    s2 = g2 + ((a1 * f2 - b1 * e2) - 2.0 * (ux * f3 - uy * e3) + 3.0 * (wx * f4 - wy * e4))
+    # first-order increments: sums of the sub-sample increments in time order, else DT1, DV1
+    if use_sub:
+        t0, t1, t2 = dtheta_sub[0, 0], dtheta_sub[0, 1], dtheta_sub[0, 2]
+        for i in range(1, dtheta_sub.shape[0]):
+            t0, t1, t2 = t0 + dtheta_sub[i, 0], t1 + dtheta_sub[i, 1], t2 + dtheta_sub[i, 2]
+        d0, d1, d2 = dv_sub[0, 0], dv_sub[0, 1], dv_sub[0, 2]
+        for i in range(1, dv_sub.shape[0]):
+            d0, d1, d2 = d0 + dv_sub[i, 0], d1 + dv_sub[i, 1], d2 + dv_sub[i, 2]
+    else:
+        t0, t1, t2 = a1, b1, c1
+        d0, d1, d2 = e1, f1, g1
+    x0, x1, x2 = p1 * d2 - p2 * d1, p2 * d0 - p0 * d2, p0 * d1 - p1 * d0
+    n0, n1, n2 = p1 * x2 - p2 * x1, p2 * x0 - p0 * x2, p0 * x1 - p1 * x0
+    dvb0, dvb1, dvb2 = v0 + n0 / 6.0, v1 + n1 / 6.0, v2 + n2 / 6.0
+    dsb0, dsb1, dsb2 = s0 + q24 * n0, s1 + q24 * n1, s2 + q24 * n2
+    # bias compensation (StepTerms.compensated)
+    T = dt
+    g0_, g1_, g2_ = gyro_bias[0], gyro_bias[1], gyro_bias[2]
+    a0_, a1_, a2_ = accel_bias[0], accel_bias[1], accel_bias[2]
+    ph0, ph1, ph2 = p0 - g0_ * T, p1 - g1_ * T, p2 - g2_ * T
+    m0 = T * ((g1_ * d2 - g2_ * d1) + (t1 * a2_ - t2 * a1_)) - TT * (g1_ * a2_ - g2_ * a1_)
+    m1 = T * ((g2_ * d0 - g0_ * d2) + (t2 * a0_ - t0 * a2_)) - TT * (g2_ * a0_ - g0_ * a2_)
+    m2 = T * ((g0_ * d1 - g1_ * d0) + (t0 * a1_ - t1 * a0_)) - TT * (g0_ * a1_ - g1_ * a0_)
+    quat_b = np.empty((1, 4))
+    dv_b = np.empty((1, 3))
+    ds_b = np.empty((1, 3))
+    dv_b[0, 0], dv_b[0, 1], dv_b[0, 2] = dvb0 - a0_ * T - 0.5 * m0, dvb1 - a1_ * T - 0.5 * m1, dvb2 - a2_ * T - 0.5 * m2
+    ds_b[0, 0] = dsb0 - a0_ * h2 - t6 * m0
+    ds_b[0, 1] = dsb1 - a1_ * h2 - t6 * m1
+    ds_b[0, 2] = dsb2 - a2_ * h2 - t6 * m2
+    f0, f1_, f2_ = d0 - a0_ * T, d1 - a1_ * T, d2 - a2_ * T
+    # quat_from_rotvec
+    angle2 = ph0 * ph0 + ph1 * ph1 + ph2 * ph2
+    angle = math.sqrt(angle2)
+    if angle < 1e-4:
+        half_sinc = 0.5 - angle2 / 48.0 + angle2 * angle2 / 3840.0
+    else:
+        half_sinc = math.sin(0.5 * angle) / angle
+    quat_b[0, 0], quat_b[0, 1] = math.cos(0.5 * angle), half_sinc * ph0
+    quat_b[0, 2], quat_b[0, 3] = half_sinc * ph1, half_sinc * ph2
+    pos, vel, quat, comp = np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 4)), np.empty(3)
+    _run(c, state, quat_b, dv_b, ds_b, True, False, dt, pos, vel, quat, comp)
+    lat, lon, h = pos[1, 0], pos[1, 1], pos[1, 2]
+    ve, vn, vu = vel[1, 0], vel[1, 1], vel[1, 2]
+    q0, q1, q2, q3 = quat[1, 0], quat[1, 1], quat[1, 2], quat[1, 3]
+    state[0], state[1], state[2] = lat, lon, h
+    state[3], state[4], state[5] = comp[0], comp[1], comp[2]
+    state[6], state[7], state[8] = ve, vn, vu
+    state[9], state[10], state[11], state[12] = q0, q1, q2, q3
+    c01 = 2.0 * (q1 * q2 - q0 * q3)
+    c11 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c20 = 2.0 * (q1 * q3 - q0 * q2)
+    c21 = 2.0 * (q2 * q3 + q0 * q1)
+    c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    out[0], out[1], out[2], out[3], out[4], out[5] = lat, lon, h, ve, vn, vu
+    out[6] = math.atan2(c01, c11)
+    out[7] = math.asin(min(max(c21, -1.0), 1.0))
+    out[8] = math.atan2(-c20, c22)
+    u0, u1, u2 = 2.0 * (q2 * f2_ - q3 * f1_), 2.0 * (q3 * f0 - q1 * f2_), 2.0 * (q1 * f1_ - q2 * f0)
+    out[9] = f0 + q0 * u0 + (q2 * u2 - q3 * u1)
+    out[10] = f1_ + q0 * u1 + (q3 * u0 - q1 * u2)
+    out[11] = f2_ + q0 * u2 + (q1 * u1 - q2 * u0)
+
+
+_run = run
 _found: list[bool] = []
 _compiled: list = []
+_compiled_step: list = []
 
 
 def available() -> bool:
@@ -170,7 +290,20 @@ def kernel():
     if not _compiled:
         import numba
 
-        global _evaluate
+        global _evaluate, _run
         _evaluate = numba.njit(cache=True, inline="always")(_evaluate)
-        _compiled.append(numba.njit(cache=True, nogil=True)(run))
+        _run = numba.njit(cache=True, nogil=True)(run)
+        _compiled.append(_run)
     return _compiled[0]
+
+
+def step_kernel():
+    """:func:`one_step` compiled by numba (calling the compiled :func:`run`), or None without numba."""
+    if not available():
+        return None
+    if not _compiled_step:
+        import numba
+
+        kernel()
+        _compiled_step.append(numba.njit(cache=True, nogil=True)(one_step))
+    return _compiled_step[0]
