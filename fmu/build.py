@@ -66,15 +66,17 @@ What a host needs to run a navsim FMU
   (exit code 0): see navsim.fmu.runtime for the exit-time crash this avoids.
   (On Windows: put pythonXY.dll's folder on PATH.)
 * Binaries are included for linux64/x86_64-linux and win64/x86_64-windows.
-* Communication step: a whole number of simulator ticks; the estimator FMU's at most one
-  navigation step (the plant composes the increments of several steps into one, which an
-  estimator cannot take step by step); any other step is refused with an error status and
-  a log message.
+* Communication step: a whole number of simulator ticks, the same for both FMUs: at most
+  one navigation step, or k whole navigation steps where k divides the steps of a GNSS
+  period and of the episode (the plant composes the k steps' multiple integrals exactly;
+  the estimator runs with a navigation step of k steps and processes each interval as one
+  update, every GNSS epoch at an interval's end). Any other step is refused with an error
+  status and a log message.
 * Masters: connect every estimator input to the plant output of the same name (time.step
   and time.t_s included). Any fixed-step master works: Gauss-Seidel stepping the plant
   first gives the estimate of the step just ended (nav.lag_steps = 0); Jacobi (libcosim,
   ECOS, most masters) or Gauss-Seidel stepping the estimator first gives the estimate of
-  the previous step (nav.lag_steps = 1). nav.t_s always says the time the estimate refers
+  the previous communication step (nav.lag_steps = 1, or k). nav.t_s always says the time the estimate refers
   to: compare it with truth at nav.t_s. The estimator reads the plant's step counter and
   takes each plant step once and in order; skipped, repeated or stale data (a missed
   transfer, time.step not connected) are refused with an error status and a log line.
@@ -375,8 +377,9 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
         table = estimator_variables(dims, {"estimator.name": estimator, "estimator.options": estimator_options})
         text = (f"navsim estimator {estimator!r} on scenario {scenario.name!r}: navigation solution and its "
                 f"uncertainty. Connect every input to the plant output of the same name (time.step included); "
-                f"any fixed-step master with h <= {scenario.timing.nav_period_s!r} s: nav.t_s is the time the "
-                f"solution refers to (one navigation step behind under a Jacobi master, nav.lag_steps)")
+                f"any fixed-step master with h <= {scenario.timing.nav_period_s!r} s or h = k navigation steps "
+                f"(k dividing the GNSS period): nav.t_s is the time the solution refers to (one communication "
+                f"step behind under a Jacobi master, nav.lag_steps)")
     text += ". Needs a Python with navsim and numpy (see documentation/index.html)."
     identifier = MODEL_IDENTIFIERS[what]
     module = f"navsim_{what}_fmi{fmi}"

@@ -32,33 +32,64 @@ External motion
 Estimator: co-simulation semantics under any master
     The estimator FMU's inputs carry the plant's output names (285 connections by name
     for paper-2012, FMI 2), the plant's step counter ``time.step`` and ``time.t_s``
-    included. It accepts any communication step of a whole number of ticks and keeps its
-    own time. At ``doStep(t, h)`` let ``c`` be the ``time.step`` input, ``p`` the plant
-    steps already processed (output ``nav.step``), ``n0``/``n1`` the navigation steps
-    ended at ``t``/``t + h``. It processes plant step ``c`` (index ``c - 1``) when
-    ``c = p + 1``, and holds its outputs when ``c = p``, provided ``n0 <= c <= n1``:
-    a Gauss-Seidel master stepping the plant first gives ``c = n1`` (no lag); a Jacobi
-    master, or a Gauss-Seidel one stepping the estimator first, gives ``c = n0`` (the
-    estimate is one navigation step behind the FMU's time). The first communication step
-    that spans the end of a navigation step shows which of the two the master is; from
-    then on ``c`` must be ``n1`` (plant-first) or ``n0`` (lagged). Every other case is refused
-    with an error status and a log line, state unchanged: ``c < p`` (repeated data: a
-    plant reset or replayed values), ``c > p + 1`` (skipped data, e.g. a communication
-    step of several navigation steps: the plant composes those steps' increments and the
-    estimator cannot take them one by one; a communication step spanning more than one
-    navigation step is refused for the same reason), ``c`` behind the master's order (stale
-    data: a missed transfer, a master that changed its order, ``time.step`` not
-    connected), ``c`` ahead of it, and a ``time.t_s`` input that
-    is not ``c`` navigation steps. Outputs: ``nav.t_s`` is the time the solution refers
-    to (the end of plant step ``c``; the prior, at 0, before the first step),
-    ``nav.lag_steps = n1 - p`` the lag in navigation steps. The estimator is reset with
-    the ``prior.*`` inputs when the first plant step arrives (so the prior has been
-    transferred whatever the master's order) and the prior covariance of the embedded
-    scenario's ``[initial]`` section.
+    included. It accepts a communication step ``h`` of a whole number of ticks, either
+    within one navigation step ``dt`` or spanning ``k`` whole navigation steps, and keeps
+    its own time. At ``doStep(t, h)`` let ``c`` be the ``time.step`` input, ``p`` the
+    plant steps already processed (output ``nav.step``), ``n0``/``n1`` the navigation
+    steps ended at ``t``/``t + h`` and ``k = n1 - n0`` the span of the step (fixed by the
+    first communication step that ends a navigation step; 1 for ``h <= dt``). It
+    processes the plant's data when ``c = p + k`` and holds its outputs when ``c = p``,
+    provided ``n0 <= c <= n1``: a Gauss-Seidel master stepping the plant first gives
+    ``c = n1`` (no lag); a Jacobi master, or a Gauss-Seidel one stepping the estimator
+    first, gives ``c = n0`` (the estimate is one communication step, ``k`` navigation
+    steps, behind the FMU's time). The first communication step that spans the end of a
+    navigation step shows which of the two the master is; from then on ``c`` must be
+    ``n1`` (plant-first) or ``n0`` (lagged). Every other case is refused with an error
+    status and a log line, state unchanged: ``c < p`` (repeated data: a plant reset or
+    replayed values), ``c`` beyond ``p + k`` or between ``p`` and ``p + k`` (skipped data:
+    a lost transfer, or a plant stepped with another ``h``), a step whose span differs
+    from the first one's (``h`` changed, or ``h`` of 1.5 navigation steps), ``c`` behind
+    the master's order (stale data: a missed transfer, a master that changed its order,
+    ``time.step`` not connected), ``c`` ahead of it, and a ``time.t_s`` input that is not
+    ``c`` navigation steps. Outputs: ``nav.t_s`` is the time the solution refers to (the
+    end of plant step ``c``; the prior, at 0, before the first step), ``nav.lag_steps =
+    n1 - p`` the lag in navigation steps (0, or ``k`` under a lagged master). The
+    estimator is reset with the ``prior.*`` inputs when the first plant data arrive (so
+    the prior has been transferred whatever the master's order) and the prior
+    covariance of the embedded scenario's ``[initial]`` section.
+Estimator: a communication step of k navigation steps (``h = k dt``, k > 1)
+    The plant then composes the k steps' multiple integrals exactly
+    (:func:`navsim.sensors.imu.compose_multiple_integrals`, seed 000 eq. 1.14 over the
+    interval ``k dt``), and the strapdown algorithms of seed 000 take an interval of any
+    length from its multiple integrals. The estimator therefore runs with a navigation
+    step of ``k dt``: it is reset with the context of the scenario whose
+    ``nav_period_s`` (and, for the one sample it receives per interval,
+    ``imu_period_s``) is ``k dt`` and ``samples_per_step = 1``, and each interval is one
+    :class:`~navsim.types.Measurement` with ``dt = k dt``, the composed ``dtheta_r`` /
+    ``dv_r``, and as its single sub-sample the interval's first-order increments
+    (``dtheta_r[0]``, ``dv_r[0]``: the sums of the interval's samples; the plant
+    transfers the samples of its last navigation step only). The numbers are those of
+    ``run_episode`` on the scenario with ``[timing] nav_period_s = k dt`` for every
+    estimator whose strapdown reads the multiple integrals, as the bundled ones do with
+    their automatic method choice (same IMU samples and GNSS epochs; the composition of
+    the simulator and of the plant is the same contraction, element by element): bit for
+    bit in ``tests/fmu/test_masters.py``. Such a scenario's odometer would draw its
+    errors per step of ``k dt``, the plant's ``odometer.ds_m`` is the exact sum over the
+    k steps of ``dt``, so with an odometer only the IMU/GNSS part of that statement holds.
+    GNSS epochs: ``k`` must divide the navigation steps of a GNSS period (and of the
+    episode), so every epoch falls at the end of an interval and is processed there, at
+    its own time; any other ``k`` is refused at the first step with an error status and a
+    log line (an epoch inside an interval would otherwise be applied at the interval's
+    end, and the plant keeps only the latest epoch of an interval), as is an epoch
+    whose ``gnss.t_s`` is not the interval's end. An estimator that cannot take the
+    longer step (a configuration that needs IMU sub-samples, or a covariance period
+    that is not a whole number of such steps) refuses at its reset, at the first plant
+    data: an error status and a log line naming the estimator and its reason.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -67,6 +98,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import ConfigError, NavsimError
+from navsim.types import GnssObservation, Measurement
 
 from .variables import Dimensions, Var, estimator_variables, plant_variables
 
@@ -620,6 +652,7 @@ class EstimatorRuntime(_RuntimeBase):
         self.tick = 0  # the estimator FMU's time in simulator ticks
         self.processed = 0  # plant steps processed (nav.step)
         self.lagged = None  # None until the master's order is seen; then True (Jacobi) or False
+        self.span = None  # navigation steps per communication step, fixed by the first that ends one
         self.started = False
         self.initialised = True
         self.log(f"navsim {_version()} estimator {params['estimator.name']!r} on scenario "
@@ -627,28 +660,32 @@ class EstimatorRuntime(_RuntimeBase):
 
     # -- stepping -----------------------------------------------------------------------
     def check_step(self, t: float, h: float) -> tuple[int, int | None]:
-        """``(ticks, k)`` of a communication step: its length in ticks and the index of the
-        plant step to process now (``None``: no new plant step); FmuError with the reason
+        """``(ticks, c)`` of a communication step: its length in ticks and the plant's step
+        counter to process now (``None``: no new plant data); FmuError with the reason
         when the step or the plant's counter breaks the rules of the module docstring."""
         n = self._step_ticks(t, h)
         dt = self.timing.nav_period_s
         c = int(self.store.read("time.step"))
         done = self.processed
         n0, n1 = self.tick // self.nav_ticks, (self.tick + n) // self.nav_ticks
-        if n1 - n0 > 1:
-            raise FmuError(f"communication step h = {h!r} s spans {n1 - n0} navigation steps: the plant composes "
-                           "the increments of the steps it serves in one communication step and the estimator "
-                           f"takes each plant step one by one; step both FMUs with h <= {dt!r} s (one "
-                           "navigation step or a whole number of ticks within one)")
+        span = self.span if self.span is not None else (n1 - n0 if n1 > n0 else None)
+        if n1 > n0 and span is not None and n1 - n0 != span:
+            raise FmuError(f"communication step h = {h!r} s spans {n1 - n0} navigation step(s) where the earlier "
+                           f"steps spanned {span}: the estimator takes every interval as one navigation update "
+                           f"of a fixed length; keep h constant, a whole number of navigation steps ({dt!r} s) "
+                           "or a fraction of one")
+        if span is not None and span > 1 and self.span is None:
+            self._check_span(span, h)
+        k = span or 1
         if c < done:
             raise FmuError(f"repeated data: the plant's time.step input went back from {done} to {c} (a plant "
                            "reset or restarted without the estimator, or old values replayed); the estimator "
                            "takes each plant step once and in order")
-        if c > done + 1:
-            raise FmuError(f"skipped data: the plant's time.step input jumped from {done} to {c}, so "
-                           f"{c - done - 1} navigation step(s) of sensor data were never seen (a communication "
-                           f"step of several navigation steps, h = {h!r} s, or a lost transfer); step both "
-                           f"FMUs with at most one navigation step, h <= {dt!r} s")
+        if c > done + k or done < c < done + k:
+            raise FmuError(f"skipped data: the plant's time.step input jumped from {done} to {c}, where this "
+                           f"estimator's communication step (h = {h!r} s) takes {k} navigation step(s) at a time: "
+                           "a lost transfer, or a plant stepped with another communication step than the "
+                           "estimator; step both FMUs with the same h")
         lagged = self.lagged
         if lagged is None and n1 > n0:  # the first step across a step end shows the master's order
             lagged = c == n0 and c < n1
@@ -666,22 +703,59 @@ class EstimatorRuntime(_RuntimeBase):
         if c and not abs(t_in - c * dt) <= REL_TOL * max(1.0, c * dt) + 1e-12:
             raise FmuError(f"the plant's time.t_s input {t_in!r} s is not the end of its step {c} with this "
                            f"estimator's navigation step {dt!r} s: plant and estimator of different scenarios?")
-        self._lagged_next = lagged
-        return n, (c - 1 if c == done + 1 else None)
+        if c == done + k and k > 1 and self.store.read("gnss.new_epoch"):
+            t_epoch = float(self.store.read("gnss.t_s"))
+            if not abs(t_epoch - c * dt) <= REL_TOL * max(1.0, c * dt) + 1e-12:
+                raise FmuError(f"the GNSS epoch at {t_epoch!r} s fell inside the composed interval "
+                               f"({(c - k) * dt!r}, {c * dt!r}] s: the estimator would apply it at the interval's "
+                               "end; choose a communication step that divides the GNSS period")
+        self._lagged_next, self._span_next = lagged, span
+        return n, (c if c == done + k and c > done else None)
+
+    def _check_span(self, k: int, h: float) -> None:
+        """The first interval of k > 1 navigation steps: refused (FmuError) when GNSS epochs
+        would fall inside intervals or the episode is not a whole number of them."""
+        timing = self.timing
+        if timing.steps_per_epoch % k:
+            raise FmuError(f"communication step h = {h!r} s spans {k} navigation steps, which do not divide the "
+                           f"GNSS period {timing.gnss_period_s!r} s ({timing.steps_per_epoch} steps): epochs would "
+                           "fall inside the composed intervals, where the plant keeps only the latest and the "
+                           "estimator would apply it at the wrong time; choose h dividing the GNSS period")
+        if timing.steps % k:
+            raise FmuError(f"communication step h = {h!r} s spans {k} navigation steps, which do not divide the "
+                           f"episode ({timing.steps} steps): the last interval would be shorter; choose h "
+                           "dividing the episode length")
+
+    def _reset_estimator(self, k: int) -> None:
+        """Reset the estimator with the prior at the first plant data: navigation step k dt."""
+        context = self.context
+        if k > 1:  # one navigation update per composed interval of k steps (module docstring)
+            dt = k * self.timing.nav_period_s
+            context = dataclasses.replace(context, nav_period_s=dt, imu_period_s=dt, samples_per_step=1)
+        try:
+            self.estimator.reset(context, self._prior())
+        except NavsimError as exc:
+            raise FmuError(f"estimator {self.meta.get('estimator', '')!r} cannot run with a navigation step of "
+                           f"{k} x {self.timing.nav_period_s!r} s (the master's communication step): {exc}") from None
 
     def do_step(self, t: float, h: float) -> None:
         """Advance one communication step (FmuError: refused, state unchanged)."""
-        n, k = self.check_step(t, h)
-        self.lagged = self._lagged_next
-        if k is not None:
+        n, c = self.check_step(t, h)
+        if c is not None:
+            k = self._span_next or 1
             if not self.started:  # the prior came with (or before) the plant's first step
-                self.estimator.reset(self.context, self._prior())
+                self._reset_estimator(k)
                 self.started = True
-            est = self.estimator.step(self._measurement(k))
-            self.processed = k + 1
-            self._write_estimate(est, self.processed * self.timing.nav_period_s)
+            try:
+                est = self.estimator.step(self._measurement(c, k))
+            except NavsimError as exc:  # e.g. a strapdown method that needs IMU sub-samples
+                raise FmuError(f"estimator {self.meta.get('estimator', '')!r} refused the data of plant step {c} "
+                               f"(navigation step {k} x {self.timing.nav_period_s!r} s): {exc}") from None
+            self.processed = c
+            self._write_estimate(est, c * self.timing.nav_period_s)
         elif not self.started:
             self._write_estimate(self._prior(), 0.0)
+        self.lagged, self.span = self._lagged_next, self._span_next
         self.tick += n
         self.store.write("nav.lag_steps", self.tick // self.nav_ticks - self.processed)
 
@@ -694,9 +768,8 @@ class EstimatorRuntime(_RuntimeBase):
                      heading=float(read("prior.heading_rad")), pitch=float(read("prior.pitch_rad")),
                      roll=float(read("prior.roll_rad")), covariance=self.prior_covariance.copy())
 
-    def _measurement(self, k: int):
-        from navsim.estimators.base import GnssObservation, Measurement
-
+    def _measurement(self, c: int, k: int):
+        """The Measurement of plant steps ``c - k .. c - 1`` (one navigation step when k = 1)."""
         read = self.store.read
         orders = self.dims.orders
         gnss = None
@@ -708,10 +781,14 @@ class EstimatorRuntime(_RuntimeBase):
         dt = self.timing.nav_period_s
         flat = self._read_imu()  # [dtheta_r (R, 3), dv_r (R, 3), dtheta_sub (m, 3), dv_sub (m, 3)]
         a, b = 3 * orders, 3 * self.dims.samples_per_step
+        dtheta_r, dv_r = flat[:a].reshape(orders, 3), flat[a:2 * a].reshape(orders, 3)
+        if k == 1:
+            dtheta_sub, dv_sub = flat[2 * a:2 * a + b].reshape(-1, 3), flat[2 * a + b:].reshape(-1, 3)
+        else:  # the interval as one sample: its first-order increments (the sums of its samples)
+            dtheta_sub, dv_sub = dtheta_r[:1], dv_r[:1]
         return Measurement(
-            step=k, t=(k + 1) * dt, dt=dt, dtheta_r=flat[:a].reshape(orders, 3), dv_r=flat[a:2 * a].reshape(orders, 3),
-            dtheta_sub=flat[2 * a:2 * a + b].reshape(-1, 3), dv_sub=flat[2 * a + b:].reshape(-1, 3), gnss=gnss,
-            odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
+            step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=dtheta_r, dv_r=dv_r, dtheta_sub=dtheta_sub, dv_sub=dv_sub,
+            gnss=gnss, odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
 
     def _write_estimate(self, est, t_s: float) -> None:
         w = self.store.write

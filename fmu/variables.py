@@ -208,7 +208,8 @@ def _estimate_time_vars() -> list[Var]:
             "Plant navigation steps processed (the step the nav.* solution refers to)", group="solution", low=0),
         Var("nav.lag_steps", "int", "output", "discrete", "",
             "Navigation steps between the end of the last communication step and nav.t_s (0 under a "
-            "plant-first Gauss-Seidel master, 1 under a Jacobi or estimator-first master)", group="solution",
+            "plant-first Gauss-Seidel master; under a Jacobi or estimator-first master 1, or k for a "
+            "communication step of k navigation steps)", group="solution",
             low=0),
     ]
 

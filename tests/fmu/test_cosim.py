@@ -51,8 +51,8 @@ def test_estimator_fmu_refuses_other_steps(estimator3):
 
     with FmuInstance(estimator3, "e") as inst:
         inst.initialize()
-        with pytest.raises(FmuCallError, match="spans 2 navigation steps"):
-            inst.do_step(0.0, 0.02)
+        with pytest.raises(FmuCallError, match="spans 3 navigation steps, which do not divide the GNSS period"):
+            inst.do_step(0.0, 0.03)
         with pytest.raises(FmuCallError, match="not a whole number"):
             inst.do_step(0.0, 0.015)
 

@@ -158,28 +158,125 @@ def test_communication_step_of_one_tick(order, half_tick_pair):
     np.testing.assert_array_equal(_solution([rows[i] for i in fresh]), _reference_solution(ref)[:len(fresh)])
 
 
+@pytest.fixture(scope="module")
+def k_step_reference(scenario):
+    """run_episode of the scenario with a navigation step of k dt, per k (cached)."""
+    cache = {}
+
+    def get(k):
+        if k not in cache:
+            dt = scenario.timing.nav_period_s
+            coarse = scenario.with_overrides({"timing": {"nav_period_s": k * dt}})
+            cache[k] = run_episode(coarse, estimators.make("lc-ekf"), seed=SEED, use_batch=False)
+        return cache[k]
+    return get
+
+
+@pytest.mark.parametrize("k", [2, 5])
+@pytest.mark.parametrize("order, lagged", [("plant-first", 0), ("estimator-first", 1), ("jacobi", 1)])
+def test_communication_step_of_k_navigation_steps(k, order, lagged, plant2, estimator2, scenario, k_step_reference):
+    """h = k dt: the plant composes the k steps' multiple integrals, the estimator takes
+    each interval as one navigation update of k dt. The numbers are run_episode's on the
+    scenario with [timing] nav_period_s = k dt, bit for bit: the IMU samples and GNSS
+    epochs are the same, the composition of the k steps (plant) and of the k samples
+    (simulator) is the same contraction element by element (compose_multiple_integrals,
+    whatever the batch length), and lc-ekf's automatic strapdown choice reads the
+    multiple integrals only. nav.t_s / nav.step count plant steps of dt; a lagged master
+    is one communication step (k navigation steps) behind."""
+    ref = k_step_reference(k)
+    dt = scenario.timing.nav_period_s
+    n = scenario.timing.steps // k
+    m = PlainMaster(plant2, estimator2)
+    try:
+        rows = m.run(n, k * dt, order)
+    finally:
+        m.close()
+    steps = np.array([r["nav.step"] for r in rows])
+    np.testing.assert_array_equal(steps, k * (np.arange(1, n + 1) - lagged))
+    np.testing.assert_array_equal([r["nav.lag_steps"] for r in rows], np.full(n, k * lagged))
+    np.testing.assert_array_equal([r["nav.t_s"] for r in rows], steps * dt)
+    assert len(ref.t) == n and abs(ref.t[0] - k * dt) < 1e-15
+    got, want = _solution(rows[lagged:]), _reference_solution(ref)[:n - lagged]
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(np.array([r["nav.covariance"] for r in rows[lagged:]]).reshape(-1, 9, 9),
+                                  ref.est_cov[:n - lagged])
+    np.testing.assert_array_equal([r["nav.nis"] for r in rows[lagged:]], ref.nis[:n - lagged])
+    # every GNSS epoch of the episode was processed (none lost inside an interval): one
+    # NIS per epoch with valid satellites, as in run_episode
+    assert np.isfinite(ref.nis).sum() > 0
+    assert np.isfinite([r["nav.nis"] for r in rows[lagged:]]).sum() == np.isfinite(ref.nis[:n - lagged]).sum()
+
+
 def _log_tail(inst, seen):
     return " ".join(msg for _, msg in inst.log[seen:])
 
 
-def test_a_step_of_several_navigation_steps_is_refused(plant2, estimator2):
-    """h = 2 navigation steps: the plant composes two steps' increments, which the
-    estimator cannot take one by one: error status and a log line, no silent numbers.
-    A transfer the master skips shows as a jump of the counter: refused as well."""
+def test_steps_that_cannot_be_served_are_refused(plant2, estimator2):
+    """h = 3 dt does not divide the GNSS period (100 steps): epochs would fall inside
+    intervals; refused at the first step with an error status and a log line. A span
+    that changes, a plant stepped with another h and a lost transfer are refused too."""
     m = PlainMaster(plant2, estimator2)
     try:
         seen = len(m.est.log)
-        with pytest.raises(FmuCallError, match=r"h = 0.02 s spans 2 navigation steps"):
+        with pytest.raises(FmuCallError, match=r"h = 0.03 s spans 3 navigation steps, which do not divide the GNSS"):
+            m.est.do_step(0.0, 0.03)
+        assert "do not divide the GNSS period" in _log_tail(m.est, seen)
+        m.plant.do_step(0.0, 0.01)  # the plant stepped with h = dt, the estimator with 2 dt
+        m.transfer()
+        with pytest.raises(FmuCallError, match=r"skipped data: .* jumped from 0 to 1, where .* takes 2 navigation"):
             m.est.do_step(0.0, 0.02)
-        assert "spans 2 navigation steps" in _log_tail(m.est, seen)
-        m.est.do_step(0.0, 0.01)  # the refused step changed nothing: retry with one step
+        m.plant.do_step(0.01, 0.01)
+        m.transfer()
+        m.est.do_step(0.0, 0.02)  # the refused steps changed nothing: both at step 2 now
+        assert m.nav.unpack(m.nav.fetch())["nav.step"] == 2
+        m.plant.do_step(0.02, 0.02)
+        with pytest.raises(FmuCallError, match=r"spans 1 navigation step\(s\) where the earlier steps spanned 2"):
+            m.est.do_step(0.02, 0.01)
+        m.plant.do_step(0.04, 0.02)  # a lost transfer: the input goes 2 -> 6 for a step of 2
+        m.transfer()
+        with pytest.raises(FmuCallError, match=r"skipped data: .* jumped from 2 to 6"):
+            m.est.do_step(0.02, 0.02)
+    finally:
+        m.close()
+    m = PlainMaster(plant2, estimator2)  # a lost transfer with h = dt
+    try:
+        m.est.do_step(0.0, 0.01)
         m.plant.do_step(0.0, 0.01)
-        m.plant.do_step(0.01, 0.01)  # a lost transfer: the plant is at step 2, the input went 0 -> 2
+        m.plant.do_step(0.01, 0.01)
         m.transfer()
         with pytest.raises(FmuCallError, match=r"skipped data: .* jumped from 0 to 2"):
             m.est.do_step(0.01, 0.01)
     finally:
         m.close()
+
+
+def test_an_estimator_that_needs_sub_samples_refuses_k_steps(fmu_dir, scenario):
+    """Two IMU samples per navigation step and lc-ekf told to use two-sample coning and
+    sculling: it runs with h = dt, but a composed interval carries one sample, so h = 2 dt
+    is refused with an error status and a log line naming the estimator and the reason."""
+    pytest.importorskip("pythonfmu")
+    from navsim.fmu.build import build_fmu
+
+    fine = scenario.with_overrides({"timing": {"tick_s": 0.005, "imu_period_s": 0.005}})
+    path = build_fmu(fine, "estimator", 2, fmu_dir / "est_two_sample.fmu", estimator="lc-ekf",
+                     estimator_options='coning = "two-sample"\nsculling = "two-sample"')
+    for h, ok in ((0.01, True), (0.02, False)):
+        est = FmuInstance(path, "e")
+        try:
+            est.initialize()
+            steps = round(h / 0.01)
+            est.set({"time.step": steps, "time.t_s": steps * 0.01})  # a plant-first master's first transfer
+            if ok:
+                est.do_step(0.0, h)
+                assert est.get(["nav.step"])["nav.step"] == 1
+            else:
+                seen = len(est.log)
+                with pytest.raises(FmuCallError, match=r"estimator 'lc-ekf' refused the data of plant step 2 "
+                                                       r"\(navigation step 2 x 0.01 s\)"):
+                    est.do_step(0.0, h)
+                assert "dtheta_sub" in _log_tail(est, seen)
+        finally:
+            est.free()
 
 
 def test_stale_repeated_and_unconnected_data_are_refused(plant2, estimator2, reference):
