@@ -275,7 +275,7 @@ def test_fused_coefficients_equal_the_complex_step_reference(paper_sim, options)
 @pytest.mark.parametrize("which", ["faithful", "wgs84"])
 def test_riccati_as_quadratic_form_equals_the_direct_rk4(paper_sim, which):
     """[R; I]^T H [R; I] = A R + R A^T + Q - (R h + S)(R h + S)^T / sigma^2, and the RK4 steps agree."""
-    from navsim.estimators.paper_ekf.filter import _riccati_rk4
+    from navsim.estimators.paper_ekf.numerics import riccati_rk4 as _riccati_rk4
 
     est = _wgs84_filter() if which == "wgs84" else _filter(paper_sim)
     n = est.n_states
@@ -743,7 +743,7 @@ def test_spline_track_local_quintic_lambda_of_phi():
     """A non-polynomial track becomes C^2 quintic pieces lambda(phi), h(phi) that reproduce
     its position, heading and curvature between the nodes (the observer needs lambda'')."""
     from navsim.earth import WGS84
-    from navsim.estimators.paper_ekf.filter import TrackFunctions, _quintic_hermite
+    from navsim.estimators.paper_ekf.track_functions import TrackFunctions, _quintic_hermite
     from navsim.track import track_frame
     from navsim.trackio import load_bundled_track
 

@@ -3,7 +3,7 @@ table and the deterministic checks (noise-free open-loop propagation from the tr
 
 Truths used: the simulator's exact motion (a noise-free IMU integrated by the filter model
 must stay on it), the Lyapunov equation of the covariance without (13) (the reference
-RK4 of :func:`navsim.estimators.paper_ekf.filter._riccati_rk4` with zero observation), and the
+RK4 of :func:`navsim.estimators.paper_ekf.numerics.riccati_rk4` with zero observation), and the
 GNSS epoch times of the scenario.
 """
 
@@ -14,7 +14,7 @@ import pytest
 
 from navsim.episode import make_context, measurement_batch
 from navsim.estimators.paper_ekf import PaperEkf, paper_state
-from navsim.estimators.paper_ekf.filter import _riccati_rk4
+from navsim.estimators.paper_ekf.numerics import riccati_rk4 as _riccati_rk4
 from navsim.paper.seed003 import _truth_state, gnss_epoch_times, outage_instants
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator

@@ -1,559 +1,32 @@
-"""The track-model INS/GNSS filter of seed 003 (Sokolov & Vdovichenko 2012).
+"""The seed-003 estimator :class:`PaperEkf`: set-up, the continuous filter (14), the epoch update (16), outputs.
 
-The vehicle moves on a known track written as longitude and height functions of latitude,
-lambda(phi), h(phi) (:mod:`navsim.track`). Position and velocity then have one degree of
-freedom each, and the filter state shrinks to the paper's reduced vector (eq. (8))::
-
-    Y = [alpha, beta, gamma, phi, V_Y]
-
-alpha, beta, gamma being the Euler-Krylov angles of the body relative to the *inertial*
-frame (Appendix 1, :func:`navsim.rotations.euler_krylov_matrix`; the inertial frame
-coincides with the Greenwich frame at t = 0), phi the latitude and V_Y the north velocity.
-East and up velocity follow from the track (003, after (6))::
-
-    V_X = lambda'(phi) cos(phi) V_Y,    V_Z = h'(phi) V_Y / (r + h).
-
-Equations implemented
----------------------
-* State equations (7)-(8) with F, F1 of Appendix 2: ``[alpha', beta', gamma'] =
-  Phi (Z_d - W_d)``, ``phi' = V_Y / (r + h)``, ``V_Y' = C_(2)^T (Z_a - W_a) + Coriolis,
-  transport and centrifugal terms``, where ``C = D(alpha, beta, gamma) B^T`` maps ENU to
-  body and ``B = D(-phi, lambda(phi) + Omega t, 0)`` maps the inertial frame (paper axes
-  xi, eta, zeta = y_e, z_e, x_e) to ENU.
-* The autonomous accelerometer observer (13): because the vehicle stays on the track,
-  ``V_X = k(phi) V_Y`` with ``k = lambda' cos(phi)`` holds at all times, so the east
-  equation of (1), (12), and the derivative of the constraint, (10)-(11), must agree.
-  Equating them gives the x-accelerometer as a function of the state and of the other two
-  accelerometers. Written compactly with ``u = e - k n`` (the east minus k times the north
-  unit vector, body components ``u_b = C u_n``) and ``f_E - k f_N = u_b . Z_a``::
-
-      u_b . Z_a = G(phi, V_Y),   G = k A(phi, V_Y) + k_phi V_Y^2 / (r + h) - B(phi, V_Y)
-      Z_ax = H_a(Y, Z_ay, Z_az) + H_w W_a,
-      H_a = (G - u_b,y Z_ay - u_b,z Z_az) / u_b,x,   H_w = u_b^T / u_b,x
-
-  where A is the non-specific-force part of V_Y' (7) and B that of V_X' (12). This is
-  (13) term by term (``c11 - k c12 = u_b,x``, ``k c22 - c21 = -u_b,y``, ...; the literal
-  transcription :func:`printed_observer_13` is checked against it in the tests).
-* The continuous filter (14) between GNSS epochs: ``Y' = F + K (Z_ax - H_a)``,
-  ``K = (R dH_a/dY^T + F1 D_A H_w^T) (H_w D_a H_w^T)^-1`` and the Riccati equation for R,
-  i.e. the Kalman-Bucy filter with correlated process and measurement noise (W_a drives
-  V_Y and is in Z_ax).
-* The discrete update (16) at GNSS epochs with the pseudoranges and Dopplers (9) of every
-  valid satellite (H_R(phi), H_V(phi, V_Y), ECEF geometry from lambda(phi), h(phi),
-  ``V_S = [k, 1, h'/(r+h)] V_Y``) stacked, as in (15), with the accelerometer
-  observation. During outages (no valid satellite) only the accelerometer observer runs.
-
-Printed formulas that are wrong (evidence in ``tests/estimators/test_paper_ekf.py``)
------------------------------------------------------------------------------------
-* Kinematics: the printed Phi(beta, gamma) of (1)/(7) is the kinematic matrix of D with
-  alpha and beta interchanged (see :mod:`navsim.rotations`); used literally it drives the
-  angles away from the true attitude within seconds (alpha ~ -phi ~ -47 deg here).
-  Corrected: ``[alpha', beta', gamma'] = Phi(alpha, gamma) omega`` (finite differences of D).
-* Centrifugal sign: (1), (7), Appendix 2 and (13) carry ``+Omega^2 (r+h) cos(phi)
-  sin(phi)`` in V_Y'; the plumb-line gravity has ``-`` (:meth:`navsim.earth.EarthModel.
-  gravity_n`). On the spherical Earth of the example that is a 2 x 0.017 = 0.034 m/s^2 error
-  of the north acceleration.
-* Appendix 3's H_w is ``(c11 - k c12)^-1 [C_(1)^T - k C_(2)^T]`` multiplied by the braces
-  ``{(2 Omega + ...) V_Y (sin phi - ...)}`` that belong to H_a (the page break of the
-  appendix spliced the end of H_a into H_w; H_a itself is cut off there). The dimensionally
-  correct H_w is the one of (13), ``(c11 - k c12)^-1 [C_(1)^T - k C_(2)^T]``; navsim uses it
-  in both modes. (1)'s Coriolis term (printed ``+ omega x V`` with 2 Omega on the north
-  but not on the vertical Earth-rate component) is not needed: (7) and (12), which the
-  filter uses, agree with ``-(2 omega_ie + omega_en) x V``.
-* B: one place prints ``B = D(lambda + Omega t, -phi, 0)``; with D as printed only ``D(-phi,
-  lambda + Omega t, 0)`` is the ENU frame (module notes of :mod:`navsim.rotations`); used
-  throughout. Weighed together with Phi (:mod:`navsim.paper.seed003`, "Which printed matrix
-  is wrong"): one misprint in Appendix 1 - alpha and beta interchanged in the printed D -
-  makes both the printed Phi(beta, gamma) and the printed B exactly right, so the misprint
-  most economically sits in D (printed once), not in Phi (printed three times) and B;
-  navsim's choice (D as printed, Phi(alpha, gamma), B = D(-phi, lambda + Omega t, 0)) is
-  the same filter with alpha and beta renamed.
-* (16) weighs Z_ax with the intensity D_a as if it were a variance; a step-mean
-  accelerometer sample has variance ``H_w D_a H_w^T / dt``, used here.
-
-Modes
------
-``mode="faithful"``
-    The paper's model: spherical Earth (r = the context Earth's radius if it is
-    spherical, else :data:`navsim.earth.SPHERICAL`), the reduced 5-state, no receiver
-    clock, white sensor noise only, Z_ax stacked into the epoch update (16).
-    ``as_printed=False`` (default) uses the corrected kinematics and centrifugal sign;
-    ``as_printed=True`` keeps both printed errors, or pass a subset of
-    ``{"kinematics", "centrifugal"}`` to show one effect at a time.
-``mode="extended"``
-    Where the printed model falls short, each switched on only when needed:
-    receiver clock bias and drift states (two-state clock, PSDs of the nominal GNSS spec)
-    when ``context.gnss.clock_modelled`` (a standalone receiver's pseudoranges are off
-    by thousands of metres otherwise); WGS-84 radii R_N, R_E in phi' = V_Y/(R_N + h),
-    ``k = lambda' cos(phi) (R_E + h)/(R_N + h)``, the transport rates and the ellipsoidal
-    ECEF position when ``context.earth`` is WGS-84 (the normal gravity has no north
-    component there, so the centrifugal term of (7) drops); first-order Gauss-Markov
-    accelerometer and gyro bias states (3 + 3) when the nominal IMU has bias sigmas
-    (the accelerometer observer is biased one-to-one by an accelerometer bias, and a gyro
-    bias integrates into the angles during an outage); Z_ax is *not* stacked into the
-    epoch update (the continuous observer has already used that step's sample, so (16)
-    counts one step twice, a 1 % effect on one second's accelerometer information);
-    step-mean inputs (below). Not modelled in either mode: ionospheric and tropospheric
-    delays and multipath correlation (a standalone receiver leaves metre-level position
-    biases), IMU scale factors and misalignments (absorbed partly by the bias states).
-Any track
-    The equations need lambda(phi), h(phi). A :class:`~navsim.track.PolynomialTrack` is
-    used exactly; a :class:`~navsim.track.PiecewisePolynomialTrack` of degree <= 3 piece by
-    piece; any other track (e.g. a :class:`~navsim.track.SplineTrack` from waypoints) is
-    turned into a *locally* interpolated lambda(phi), h(phi): quintic Hermite pieces in phi
-    between nodes every ``node_step_m`` that match the track's exact value, slope and
-    curvature (:class:`TrackFunctions`) - in both modes, since without lambda(phi) there
-    is no filter. (A least-squares :func:`navsim.track.fit_polynomial_track` fit was tried
-    first and rejected: its curvature errors become lateral-acceleration errors far above
-    the accelerometer noise the observer (13) trusts.) Tracks whose latitude turns back
-    cannot be written this way (ConfigError); near east-west headings (k -> infinity,
-    u_b,x -> 0) the observer degrades. Use an arc-length estimator for those.
-
-Antenna lever arm (navsim extension; option ``lever_arm``)
-----------------------------------------------------------
-The paper has no lever arm: its (2)-(3) measure the ranges and Dopplers at the track point
-pos(phi), where the IMU is. navsim's receiver measures at the antenna, at
-``context.gnss.lever_arm_b_m`` = l (body axes x right, y forward, z up) from the IMU
-(:func:`navsim.sensors.gnss.antenna_state`). With ``lever_arm="auto"`` (default) and a
-non-zero arm, the epoch update predicts the antenna's observables, in both modes, with the
-filter's own attitude (the Euler-Krylov angles) and gyro rate::
-
-    r_a = pos(phi) + C_eb l,                                                 (LA.1)
-    v_a = V_Y t_e(phi) + C_eb (omega_ib_b x l) - omega_ie x C_eb l,          (LA.2)
-    C_eb = C_ne(phi, lambda) C_nb = C_ne B(phi, lambda + Omega t) D^T(alpha, beta, gamma)
-         = C_ep(t) D^T,   C_ep(t) = [[sin Omega t, 0, cos Omega t],
-                                     [cos Omega t, 0, -sin Omega t], [0, 1, 0]]
-
-(the ENU frame drops out of C_ne B: the paper's inertial axes xi, eta, zeta = y, z, x of
-the Greenwich frame at t = 0, turned by the Earth's rotation; the tests check it against
-:func:`navsim.earth.mat_en` and :func:`navsim.rotations.euler_krylov_matrix`). omega_ib_b is
-the step-mean gyro rate dtheta_1/dt of the epoch's step, minus the gyro-bias states when
-present. The measurement Jacobian (:meth:`PaperEkf.gnss_observation`) gains the attitude
-columns (LA.4) - ``dD/dtheta_i = -[a_i x] D`` moves the antenna by ``C_ep D^T (a_i x l)``
-and turns its velocity - and, with bias states, the gyro-bias columns of (LA.2); the
-phi column (complex step) and the V_Y column are taken at the antenna (its line of sight).
-The state vector is unchanged (faithful mode keeps the paper's 5 states); the output
-stays the IMU's (track point). With a zero arm (or ``lever_arm="none"``: uncompensated,
-the paper's model) the code is the paper's, number for number. The arm also makes the
-GNSS observe attitude, weakly (3 m x 1 mrad = 3 mm).
-
-Measured (``tests/estimators/test_paper_ekf.py``; antenna 1.5 m forward and 3 m up;
-5-state NEES; horizontal RMS after 20 s; covariance step 0.1 s). paper-2012 with the GNSS
-noise lowered to 1 m / 0.05 m/s, faithful mode, 20 seeds x 200 s: compensated 0.169 m,
-seed-mean NEES 5.14 (99.7 % of the times inside the 95 % band [3.71, 6.48]), NIS/dof
-1.002 - the same as with the antenna at the IMU (0.169 m, 5.14, 1.002); uncompensated
-(5 seeds) 0.75 m, NEES 72, NIS/dof 2.44. Mountain-railway curves (the other estimators'
-lever-arm case, tests/estimators/lever_arm_case.py), extended mode with bias states, 5
-seeds x 60 s: compensated 0.116 m, NEES 3.65, NIS/dof 1.01 (no arm: 0.117 m, 3.64, 1.01);
-uncompensated 1.01 m, NEES 117, NIS/dof 2.94. At the paper's own 15 m / 0.5 m/s (3 seeds
-x 100 s) the arm is hidden in the noise: compensated 2.46 m (= no arm), uncompensated
-2.29 m, NEES 6.0 / 5.7.
-
-Numerical choices
------------------
-* Inputs inside a step: navsim gives the r-fold integrals dtheta_r, dv_r (r = 1..R) of the
-  step. ``input_model="polynomial"`` reconstructs omega(t) and f(t) as the
-  polynomial of degree R-1 whose r-fold integrals match them exactly (an R x R inversion
-  of ``I_r = dt^r sum_j c_j j!/(j+r)!``), so the RK4 stages see the rates at the step
-  start, middle and end and Simpson's rule on the cubic returns dtheta_1, dv_1 exactly.
-  ``input_model="mean"`` uses dtheta_1/dt, dv_1/dt. The polynomial is the default in
-  faithful mode (white sensor noise, consistent across orders); extended mode defaults to
-  the mean, because the reconstruction weights at the step ends are large ([-4, 60, -360,
-  840] for R = 4 at the start) and amplify anything that makes the orders inconsistent -
-  quantization of the first increment of a real IMU made the tactical preset's heading
-  jump by 30 mrad in one step.
-* The state (14) is integrated by RK4 every navigation step with the gain held over the
-  step. The Riccati equation is integrated by RK4 with its coefficients (dF/dY,
-  dH_a/dY, Q, correlation, H_w D_a H_w^T) frozen at the start of each covariance interval
-  of ``cov_step_s`` (default: the navigation step; it must divide the GNSS period, and
-  intervals end at epochs); the gain is held over the interval and the output covariance
-  of the steps inside it is interpolated linearly. The gain K(t) = (R dH^T + S)/sigma^2
-  of a fresh filter is enormous (the accelerometer observer resolves one attitude axis to
-  ~1e-6 rad in a second, the prior is 1.7e-3 rad): the equations are stiff at the start,
-  with rate ``dH K ~ 1/t``. Where ``rate x interval > stiffness_limit`` the interval is
-  shortened, down to adaptive sub-steps of ``stiffness_limit / rate`` inside a step
-  (about 2 ln(rate0 dt) / stiffness_limit sub-steps in all, ~30 at the start of the
-  example), each with fresh coefficients and gain.
-* The Jacobians of F and H_a are analytic in the angles and V_Y and use the complex-step
-  derivative in phi (exact to rounding, no subtraction error; the track polynomials and
-  radii are complex-safe); the tests compare them with central finite differences.
-* Engines (option ``engine``). The filter is a sequential recursion - the coefficients of
-  each covariance interval depend on the state, whose gain depends on the covariance - so
-  nothing can be batched over steps without changing the filter; what a step costs is its
-  arithmetic plus the interpreter's overhead. The reference engine (``"python"``)
-  computes the stage values, the Jacobians, Q, S and sigma^2 in one scalar pass
-  (:meth:`PaperEkf._make_fused`; on the sphere the phi-derivatives are written out by the
-  chain rule instead of a second, complex-step pass; :meth:`PaperEkf._coefficients` is
-  kept as the reference the tests compare it with), and integrates the Riccati equation as
-  ``R' = [R; I]^T H [R; I]`` with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h /
-  sigma``, ``Abar = A - S h^T / sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small
-  matrix products per RK4 stage; same numbers as the direct form to rounding. The
-  compiled engine (``"compiled"``, :mod:`navsim.estimators.paper_ekf.kernel`, numba,
-  optional extra ``fast``; ``"auto"`` picks it when numba is installed) runs the same
-  expressions in the same order for the steps between GNSS epochs, with the matrix
-  products as loops, and hands the start-up sub-steps, failures and epoch updates (16)
-  back to the reference code; it also computes the outputs, and the step-wise
-  :meth:`PaperEkf.step` does a step without an epoch in one compiled call. The two engines
-  agree to rounding (the tolerance and its reason: ``tests/estimators/
-  test_paper_ekf_engine.py``; figures: ``benchmarks/RESULTS.md``).
-* The prior (9 x 9 over ENU position, velocity, attitude) is projected on the state by
-  weighted least squares along the track (phi and V_Y) and by the attitude Jacobian.
-* Output: lat = phi, lon = lambda(phi), h = h(phi), velocity_n = [k V_Y, V_Y, m V_Y],
-  heading/pitch/roll of ``mat_nb = B(phi, lambda + Omega t) D^T``; the 9 x 9 covariance
-  is ``J R J^T`` with J the Jacobian of that conversion (rank 5: position errors only along
-  the track; attitude errors psi = mat_nb sum_i a_i dtheta_i - theta_n dphi about ENU axes,
-  theta_n = [-1, lambda' cos phi, lambda' sin phi] dphi the rotation of the ENU frame).
-
-References
-----------
-.. [003] Sokolov S.V., Vdovichenko S.S., "Synthesis of algorithms of inertial-satellite
-   navigation systems on the basis of spatial models of motion", Nauchnoe
-   Priborostroenie, 2012 (seed 003): eqs. (1), (7)-(16), Appendices 1-3.
-.. [2] Tikhonov V.I., Kharisov V.N., Statistical analysis and synthesis of radio
-   engineering devices and systems, 1991 (ref. [6] of 003): Gaussian continuous-discrete
-   filtering.
-.. [3] Brown R.G., Hwang P.Y.C., Introduction to Random Signals and Applied Kalman
-   Filtering, 4th ed., 2012: Kalman-Bucy filter with correlated process and measurement
-   noise (sec. 8.2), two-state clock model (sec. 9.3), Joseph form.
-.. [4] Martins J.R.R.A., Sturdza P., Alonso J.J., "The complex-step derivative
-   approximation", ACM TOMS 29 (2003) 245-262.
-.. [5] Groves P.D., Principles of GNSS, Inertial, and Multisensor Integrated Navigation
-   Systems, 2nd ed., 2013, sec. 2.4 and 5.4 (local-level mechanisation), 14.2.3 and
-   14.3.3 (the lever arm in the measurement models).
+The model, the equations with their numbers, the corrections of the printed formulas, the
+modes, the lever-arm extension and the numerical choices are described in
+:mod:`navsim.estimators.paper_ekf`; the options in :mod:`~navsim.estimators.paper_ekf.config`.
+:func:`paper_state` maps a navigation solution onto the paper's state (eq. (8)).
 """
 
 from __future__ import annotations
 
-import bisect
 import cmath
 import math
 import operator
-from dataclasses import dataclass
 from typing import Iterable
 
 import numpy as np
-from numpy.polynomial import Polynomial
 
 from ...earth import SPHERICAL, EarthModel
 from ...errors import ConfigError
 from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from . import kernel as _kernel
 from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from . import kernel as _kernel
+from .config import PaperEkfConfig
+from .numerics import CSTEP, check_rows, cross, input_polynomial_matrix, riccati_rk4_h
+from .track_functions import TrackFunctions
 
-__all__ = [
-    "PaperEkf",
-    "PaperEkfConfig",
-    "TrackFunctions",
-    "paper_state",
-    "input_polynomial_matrix",
-    "printed_observer_13",
-    "printed_state_rhs",
-]
-
-_PRINTED_ITEMS = frozenset({"kinematics", "centrifugal"})
-_CSTEP = 1e-20  # complex-step size, rad
+__all__ = ["PaperEkf", "paper_state"]
 
 
-# ============================================================================ config
-@dataclass(frozen=True, slots=True)
-class PaperEkfConfig:
-    """Options of :class:`PaperEkf` (validated; see the module docstring).
-
-    mode : "faithful" or "extended".
-    as_printed : bool or frozenset of {"kinematics", "centrifugal"}: printed errors kept.
-    cov_step_s : covariance (Riccati) step, s; None = the navigation step.
-    input_model : "polynomial" or "mean" (inputs inside a step); None = polynomial in
-        faithful, mean in extended mode.
-    accel_in_update : stack Z_ax into the epoch update (16); None = True in faithful,
-        False in extended mode.
-    bias_states : "auto" (extended mode: when the nominal IMU has bias sigmas), "on", "off".
-    node_step_m : node spacing of the lambda(phi) interpolation of non-polynomial tracks, m.
-    stiffness_limit : largest (gain rate x interval) integrated in one RK4 step.
-    lever_arm : "auto" (the observables are the antenna's, at ``context.gnss.lever_arm_b_m``)
-        or "none" (uncompensated: ranges and Dopplers predicted at the track point, as in
-        the paper).
-    observer : True (default, the paper's filter) or False: the accelerometer observer
-        (13) switched off - between epochs the state follows (7)-(8) open loop with the
-        Riccati equation ``R' = A R + R A^T + Q`` (no gain, no Z_ax in (16)); the epoch
-        update (16) uses the pseudoranges and Dopplers alone. Everything else identical.
-    engine : "auto" (the compiled engine :mod:`navsim.estimators.paper_ekf.kernel` when
-        numba is installed, else the reference), "python" (the reference engine, plain
-        Python and NumPy) or "compiled" (ConfigError without numba).
-    """
-
-    mode: str = "faithful"
-    as_printed: frozenset = frozenset()
-    cov_step_s: float | None = None
-    input_model: str | None = None
-    accel_in_update: bool | None = None
-    bias_states: str = "auto"
-    node_step_m: float = 10.0
-    stiffness_limit: float = 0.5
-    lever_arm: str = "auto"
-    observer: bool = True
-    engine: str = "auto"
-
-    def __post_init__(self) -> None:
-        if self.mode not in ("faithful", "extended"):
-            raise ConfigError("mode", "'faithful' or 'extended'", self.mode)
-        printed = self.as_printed
-        if printed is True:
-            printed = _PRINTED_ITEMS
-        elif printed is False or printed is None:
-            printed = frozenset()
-        elif isinstance(printed, str):
-            printed = frozenset({printed})
-        try:
-            printed = frozenset(printed)
-        except TypeError:
-            raise ConfigError("as_printed", f"a bool or a subset of {sorted(_PRINTED_ITEMS)}", self.as_printed) from None
-        if not printed <= _PRINTED_ITEMS:
-            raise ConfigError("as_printed", f"a bool or a subset of {sorted(_PRINTED_ITEMS)}", self.as_printed)
-        if printed and self.mode != "faithful":
-            raise ConfigError("as_printed", "only with mode='faithful'", self.as_printed)
-        object.__setattr__(self, "as_printed", printed)
-        if self.cov_step_s is not None and not (isinstance(self.cov_step_s, (int, float)) and self.cov_step_s > 0):
-            raise ConfigError("cov_step_s", "None or a positive step (s)", self.cov_step_s)
-        if self.input_model not in (None, "polynomial", "mean"):
-            raise ConfigError("input_model", "None, 'polynomial' or 'mean'", self.input_model)
-        if self.accel_in_update not in (None, True, False):
-            raise ConfigError("accel_in_update", "None, True or False", self.accel_in_update)
-        if self.bias_states not in ("auto", "on", "off"):
-            raise ConfigError("bias_states", "'auto', 'on' or 'off'", self.bias_states)
-        if not (isinstance(self.node_step_m, (int, float)) and self.node_step_m > 0):
-            raise ConfigError("node_step_m", "a positive node spacing (m)", self.node_step_m)
-        if not (isinstance(self.stiffness_limit, (int, float)) and 0 < self.stiffness_limit <= 2.5):
-            raise ConfigError("stiffness_limit", "a number in (0, 2.5] (RK4 is stable below 2.78)", self.stiffness_limit)
-        if self.lever_arm not in ("auto", "none"):
-            raise ConfigError("lever_arm", "'auto' or 'none'", self.lever_arm)
-        if self.observer not in (True, False):
-            raise ConfigError("observer", "True or False", self.observer)
-        if self.engine not in ("auto", "python", "compiled"):
-            raise ConfigError("engine", "'auto', 'python' or 'compiled'", self.engine)
-        if self.engine == "compiled" and not _kernel.available():
-            raise ConfigError("engine", "'auto' or 'python' (the compiled engine needs numba: "
-                              "pip install 'navsim-track[fast]')", self.engine)
-
-
-# ============================================================================ track
-class TrackFunctions:
-    """lambda(phi), h(phi) and derivatives as fast scalar (complex-safe) and array functions.
-
-    Built from a :class:`~navsim.track.PolynomialTrack` (exact), a
-    :class:`~navsim.track.PiecewisePolynomialTrack` of degree <= 3 (exact, piece by piece),
-    or any other track (e.g. a :class:`~navsim.track.SplineTrack`) by *local* quintic
-    Hermite interpolation in latitude: at nodes every ``node_step_m`` of arc length the
-    track's exact value, slope and curvature in phi (from ``track.geodetic(s)`` and its
-    s-derivatives, ``lambda' = lon_s / lat_s``, ``lambda'' = (lon_ss lat_s - lon_s lat_ss) /
-    lat_s^3``, the same for h) are matched, so lambda(phi) is C^2 and its second
-    derivative - which enters the accelerometer observer as the centripetal term
-    ``k_phi V_Y^2 / (r + h)`` - is accurate to O(step^4). A least-squares fit
-    (:func:`navsim.track.fit_polynomial_track`) is not used for this: on the bundled
-    mountain railway a cubic fit within 0.1 m has lateral-acceleration errors of
-    2.5e-3 m/s^2 (median) to 0.1 m/s^2 at 19 m/s, thousands of times the accelerometer
-    noise the observer trusts.
-
-    Attributes
-    ----------
-    breaks : list of float
-        Left latitude of each piece, ascending (rad).
-    hermite : bool
-        True when the pieces interpolate a non-polynomial track.
-    """
-
-    def __init__(self, track, node_step_m: float = 10.0):
-        from ...track import PiecewisePolynomialTrack, PolynomialTrack
-
-        self.track = track
-        self.hermite = False
-        if isinstance(track, PolynomialTrack):
-            lam = Polynomial(track.lam_coeffs)
-            if track.h_coeffs.ndim == 1:
-                hp = Polynomial(track.h_coeffs)
-            else:  # h(lambda, phi) composed with lambda(phi) (003, introduction)
-                hp, lam_pow = Polynomial([0.0]), Polynomial([1.0])
-                for row in track.h_coeffs:
-                    hp = hp + lam_pow * Polynomial(row)
-                    lam_pow = lam_pow * lam
-            lam_c = list(lam.coef)
-            lam_c[0] += track.lam0
-            self.breaks = [track.phi0]
-            self.lam_c = [tuple(float(c) for c in lam_c)]
-            self.h_c = [tuple(float(c) for c in hp.coef)]
-        elif isinstance(track, PiecewisePolynomialTrack) and track.degree <= 3:
-            xs = [float(x) for x in track.breakpoints]
-            self.breaks = xs[:-1]
-            self.lam_c, self.h_c = [], []
-            for x in self.breaks:
-                self.lam_c.append(tuple(float(track.lam(x, j)) / math.factorial(j) for j in range(4)))
-                self.h_c.append(tuple(float(track.height(x, j)) / math.factorial(j) for j in range(4)))
-        else:
-            self._hermite(track, node_step_m)
-        # pad to a fixed degree (explicit Horner for cubics and quintics)
-        deg = max(max(len(c) for c in self.lam_c), max(len(c) for c in self.h_c))
-        self.order = 4 if deg <= 4 else (6 if deg <= 6 else deg)
-        self.lam_c = [tuple(c) + (0.0,) * (self.order - len(c)) for c in self.lam_c]
-        self.h_c = [tuple(c) + (0.0,) * (self.order - len(c)) for c in self.h_c]
-        self.single = len(self.breaks) == 1
-        self._lam_arr = np.array(self.lam_c)
-        self._h_arr = np.array(self.h_c)
-        self._breaks_arr = np.array(self.breaks)
-
-    def _hermite(self, track, node_step_m: float) -> None:
-        n = max(int(math.ceil(track.length / node_step_m)), 2)
-        s = np.linspace(0.0, track.length, n + 1)
-        pos, d1, d2 = track.geodetic(s)
-        lat_s, lat_ss = d1[:, 0], d2[:, 0]
-        if not (np.all(lat_s > 0) or np.all(lat_s < 0)):
-            i = int(np.flatnonzero(np.sign(lat_s) != np.sign(lat_s[0]))[0])
-            raise ConfigError("track", "a track whose latitude is monotonic (seed 003 writes lambda(phi), h(phi)); "
-                              "use an arc-length estimator such as 'along-track' otherwise",
-                              f"{getattr(track, 'name', 'track')}: latitude turns back near s = {s[i]:.0f} m")
-        vals = []
-        for col in (1, 2):  # lon, h as functions of lat
-            f_s, f_ss = d1[:, col], d2[:, col]
-            vals.append((pos[:, col], f_s / lat_s, (f_ss * lat_s - f_s * lat_ss) / lat_s ** 3))
-        phi = pos[:, 0]
-        order = np.argsort(phi)
-        phi = phi[order]
-        vals = [tuple(v[order] for v in triple) for triple in vals]
-        width = np.diff(phi)
-        coeffs = [_quintic_hermite(*(v[:-1] for v in triple), *(v[1:] for v in triple), width) for triple in vals]
-        self.breaks = phi[:-1].tolist()
-        self.lam_c = [tuple(row) for row in coeffs[0].tolist()]
-        self.h_c = [tuple(row) for row in coeffs[1].tolist()]
-        self.hermite = True
-
-    def _piece(self, phi) -> int:
-        if self.single:
-            return 0
-        i = bisect.bisect_right(self.breaks, phi.real) - 1
-        return 0 if i < 0 else i
-
-    def scalars(self, phi):
-        """(lam, lam', lam'', h, h') at one latitude (float or complex), rad / m."""
-        i = self._piece(phi)
-        x = phi - self.breaks[i]
-        if self.order == 4:
-            a0, a1, a2, a3 = self.lam_c[i]
-            b0, b1, b2, b3 = self.h_c[i]
-            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
-                    b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x))
-        if self.order == 6:
-            a0, a1, a2, a3, a4, a5 = self.lam_c[i]
-            b0, b1, b2, b3, b4, b5 = self.h_c[i]
-            return (a0 + x * (a1 + x * (a2 + x * (a3 + x * (a4 + x * a5)))),
-                    a1 + x * (2.0 * a2 + x * (3.0 * a3 + x * (4.0 * a4 + 5.0 * a5 * x))),
-                    2.0 * a2 + x * (6.0 * a3 + x * (12.0 * a4 + 20.0 * a5 * x)),
-                    b0 + x * (b1 + x * (b2 + x * (b3 + x * (b4 + x * b5)))),
-                    b1 + x * (2.0 * b2 + x * (3.0 * b3 + x * (4.0 * b4 + 5.0 * b5 * x))))
-        lam = _horner2(self.lam_c[i], x)
-        hh = _horner2(self.h_c[i], x)
-        return lam[0], lam[1], lam[2], hh[0], hh[1]
-
-    def scalar_function(self):
-        """:meth:`scalars` as a closure; for a single cubic piece with the coefficients bound
-        (the same expressions, no piece look-up: the hot path of the stage function)."""
-        if not (self.single and self.order == 4):
-            return self.scalars
-        x0 = self.breaks[0]
-        a0, a1, a2, a3 = self.lam_c[0]
-        b0, b1, b2, b3 = self.h_c[0]
-
-        def scalars(phi):
-            x = phi - x0
-            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
-                    b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x))
-
-        return scalars
-
-    def scalars3(self, phi: float):
-        """(lam, lam', lam'', lam''', h, h', h'') at one real latitude: one order more than
-        :meth:`scalars`, for the analytic phi-derivatives of the covariance coefficients."""
-        i = self._piece(phi)
-        x = phi - self.breaks[i]
-        if self.order == 4:
-            a0, a1, a2, a3 = self.lam_c[i]
-            b0, b1, b2, b3 = self.h_c[i]
-            return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
-                    6.0 * a3, b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x),
-                    2.0 * b2 + 6.0 * b3 * x)
-        lam = _horner3(self.lam_c[i], x)
-        hh = _horner3(self.h_c[i], x)
-        return lam[0], lam[1], lam[2], lam[3], hh[0], hh[1], hh[2]
-
-    def arrays(self, phi: np.ndarray):
-        """(lam, lam', lam'', h, h', h'') over an array of latitudes."""
-        phi = np.asarray(phi, dtype=float)
-        idx = np.clip(np.searchsorted(self._breaks_arr, phi, side="right") - 1, 0, len(self.breaks) - 1)
-        x = phi - self._breaks_arr[idx]
-        out = []
-        for arr in (self._lam_arr, self._h_arr):
-            c = arr[idx]  # (n, deg)
-            p = np.zeros_like(x)
-            d1 = np.zeros_like(x)
-            d2 = np.zeros_like(x)
-            for j in range(c.shape[-1] - 1, -1, -1):
-                d2 = d2 * x + 2.0 * d1
-                d1 = d1 * x + p
-                p = p * x + c[..., j]
-            out.append((p, d1, d2))
-        (lam, dlam, ddlam), (hh, dh, ddh) = out
-        return lam, dlam, ddlam, hh, dh, ddh
-
-
-def _quintic_hermite(p0, d0, dd0, p1, d1, dd1, width):
-    """Coefficients (n, 6) in x = phi - phi0 of the quintics matching value, slope and
-    second derivative at both ends of intervals of the given widths."""
-    H = width
-    c0, c1, c2 = p0, d0, 0.5 * dd0
-    d = p1 - (c0 + H * (c1 + H * c2))
-    e = d1 - (c1 + 2.0 * c2 * H)
-    f = dd1 - 2.0 * c2
-    c3 = (10.0 * d - 4.0 * e * H + 0.5 * f * H * H) / H ** 3
-    c4 = (-15.0 * d + 7.0 * e * H - f * H * H) / H ** 4
-    c5 = (6.0 * d - 3.0 * e * H + 0.5 * f * H * H) / H ** 5
-    return np.column_stack([c0, c1, c2, c3, c4, c5])
-
-
-def _horner3(c, x):
-    """Value and first three derivatives of sum c_j x^j."""
-    p = d1 = d2 = d3 = 0.0
-    for cj in reversed(c):
-        d3 = d3 * x + 3.0 * d2
-        d2 = d2 * x + 2.0 * d1
-        d1 = d1 * x + p
-        p = p * x + cj
-    return p, d1, d2, d3
-
-
-def _horner2(c, x):
-    """Value, first and second derivative of sum c_j x^j."""
-    p = 0.0 * x
-    d1 = 0.0 * x
-    d2 = 0.0 * x
-    for cj in reversed(c):
-        d2 = d2 * x + 2.0 * d1
-        d1 = d1 * x + p
-        p = p * x + cj
-    return p, d1, d2
-
-
-# ============================================================================ inputs
-def input_polynomial_matrix(orders: int) -> np.ndarray:
-    """M^-1 for the polynomial input model: ``c = M^-1 [I_r / dt^r]``, shape (R, R).
-
-    A signal ``g(t0 + s dt) = sum_j c_j s^j`` (j < R) has the r-fold integrals (seed 000
-    eq. (1.14), Cauchy's formula) ``I_r = dt^r sum_j c_j j! / (j + r)!``; M holds those
-    factors, so the inversion recovers the unique degree R-1 polynomial with the given
-    increments (exact for signals that are such polynomials).
-    """
-    R = int(orders)
-    m = np.array([[math.factorial(j) / math.factorial(j + r) for j in range(R)] for r in range(1, R + 1)])
-    return np.linalg.inv(m)
-
-
-# ============================================================================ helpers
 def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float) -> np.ndarray:
     """The paper's state [alpha, beta, gamma, phi, V_Y] of a navigation solution, (n, 5).
 
@@ -572,7 +45,6 @@ def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float
     return np.column_stack([alpha, beta, gamma, lat, velocity_n[:, 1]])
 
 
-# ============================================================================ estimator
 class PaperEkf(NoiseScalable):
     """Seed 003's reduced-state track-model filter (14)/(16); see the module docstring.
 
@@ -912,8 +384,8 @@ class PaperEkf(NoiseScalable):
         u_b = (d0[0] * u_p[0] + d0[1] * u_p[1] + d0[2] * u_p[2], d1[0] * u_p[0] + d1[1] * u_p[1] + d1[2] * u_p[2],
                d2[0] * u_p[0] + d2[1] * u_p[1] + d2[2] * u_p[2])
         real = self._stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz)
-        cplx = self._stage_c(a, b, g, complex(phi, _CSTEP), V, t, wx, wy, wz, fx, fy, fz)
-        d_phi = [z.imag / _CSTEP for z in cplx]
+        cplx = self._stage_c(a, b, g, complex(phi, CSTEP), V, t, wx, wy, wz, fx, fy, fz)
+        d_phi = [z.imag / CSTEP for z in cplx]
         innov = real[5]
         w0 = u_b[0]
         y = innov * w0
@@ -936,8 +408,8 @@ class PaperEkf(NoiseScalable):
         # --- angle derivatives: dD/dtheta_i = -[a_i x] D
         axes = ((cg, -sg, 0.0), (sg * ca, cg * ca, -sa), (0.0, 0.0, 1.0))
         zf = (fx, fy, fz)
-        z_x_n = _cross(zf, n_b)
-        z_x_u = _cross(zf, u_b)
+        z_x_n = cross(zf, n_b)
+        z_x_u = cross(zf, u_b)
         row4 = A[4]
         for i, ax in enumerate(axes):
             row4[i] = ax[0] * z_x_n[0] + ax[1] * z_x_n[1] + ax[2] * z_x_n[2]  # d f_N / d theta_i
@@ -1151,10 +623,10 @@ class PaperEkf(NoiseScalable):
                 a43 = f_n_p + acc_n_p
                 hneg[3] = (f_e_p - kphi * f_n - k * f_n_p - gterm_p - innov * w0s_p) / w0s
             else:
-                cplx = stage_c(a, b, g, complex(phi, _CSTEP), V, t, wx, wy, wz, fx, fy, fz)
-                a33 = cplx[3].imag / _CSTEP
-                a43 = cplx[4].imag / _CSTEP
-                hneg[3] = cplx[5].imag / _CSTEP
+                cplx = stage_c(a, b, g, complex(phi, CSTEP), V, t, wx, wy, wz, fx, fy, fz)
+                a33 = cplx[3].imag / CSTEP
+                a43 = cplx[4].imag / CSTEP
+                hneg[3] = cplx[5].imag / CSTEP
                 kphi = float(kphi_c(phi))
             # ---- V_Y derivatives
             cor2 = two_om * sp + 2.0 * kv * sp / (cp * re)
@@ -1185,7 +657,7 @@ class PaperEkf(NoiseScalable):
         return fused
 
     def _riccati_layout(self) -> None:
-        """Index maps of the Hamiltonian-like matrix H of :func:`_riccati_rk4_h` (set-up).
+        """Index maps of the Hamiltonian-like matrix H of :func:`riccati_rk4_h` (set-up).
 
         ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (2n x 2n) with ``g = h / sigma``, ``Abar = A -
         s h^T / sigma^2``, ``Qbar = Q - s s^T / sigma^2``: then ``[R; I]^T H [R; I]`` is the
@@ -1260,10 +732,10 @@ class PaperEkf(NoiseScalable):
         return K, abs(sum(map(mul, hneg, K)))
 
     def _riccati(self, P, H, tau):
-        """RK4 of (14)'s Riccati equation with H frozen (:func:`_riccati_rk4_h`), checked."""
-        P = _riccati_rk4_h(P, H, tau, self._work)
+        """RK4 of (14)'s Riccati equation with H frozen (:func:`riccati_rk4_h`), checked."""
+        P = riccati_rk4_h(P, H, tau, self._work)
         rows = P.tolist()
-        _check_rows(rows)
+        check_rows(rows)
         return P, rows
 
     def _kphi_c(self, phi):
@@ -1318,15 +790,15 @@ class PaperEkf(NoiseScalable):
         sa, ca, sg, cg = math.sin(alpha), math.cos(alpha), math.sin(gamma), math.cos(gamma)
         axes = ((cg, -sg, 0.0), (sg * ca, cg * ca, -sa), (0.0, 0.0, 1.0))
         lever = (lx, ly, lz)
-        turn = _cross((wx, wy, wz), lever)  # omega_ib_b x l
+        turn = cross((wx, wy, wz), lever)  # omega_ib_b x l
         arm_e = c_eb @ np.array(lever)
         turn_e = c_eb @ np.array(turn)
         om = self._omega
         arm_velocity_e = turn_e - np.array([-om * arm_e[1], om * arm_e[0], 0.0])  # (LA.2)
-        d_arm = c_eb @ np.array([_cross(ax, lever) for ax in axes]).T
-        d_vel = c_eb @ np.array([_cross(ax, turn) for ax in axes]).T
+        d_arm = c_eb @ np.array([cross(ax, lever) for ax in axes]).T
+        d_vel = c_eb @ np.array([cross(ax, turn) for ax in axes]).T
         d_vel -= np.array([-om * d_arm[1], om * d_arm[0], np.zeros(3)])
-        d_bias = -(c_eb @ np.array([_cross(e, lever) for e in np.eye(3).tolist()]).T)
+        d_bias = -(c_eb @ np.array([cross(e, lever) for e in np.eye(3).tolist()]).T)
         return arm_e, arm_velocity_e, d_arm, d_vel, d_bias
 
     def gnss_model(self, phi, V, sat_pos_e, sat_vel_e, arm_e=None, arm_velocity_e=None):
@@ -1744,7 +1216,7 @@ class PaperEkf(NoiseScalable):
         P = ikh @ P @ ikh.T + (Kt.T * r_diag) @ Kt  # Joseph form
         self._P = 0.5 * (P + P.T)
         self._P_rows = self._P.tolist()
-        _check_rows(self._P_rows)
+        check_rows(self._P_rows)
         return float(nu @ np.linalg.solve(S, nu)), int(len(nu))
 
     def gnss_observation(self, Y, t: float, sat_pos_e, sat_vel_e, gyro_rate_b=None):
@@ -1787,16 +1259,16 @@ class PaperEkf(NoiseScalable):
                 omega_b = omega_b - np.asarray(Y[self._i_bg:self._i_bg + 3], dtype=float)
             arm = self.antenna_offset(Y[0], Y[1], Y[2], t, omega_b)
             h_r, h_v, t_e = self.gnss_model(phi, V, sat_pos_e, sat_vel_e, arm[0], arm[1])
-            h_rc, h_vc, _ = self.gnss_model(complex(phi, _CSTEP), V, sat_pos_e, sat_vel_e, arm[0], arm[1])
+            h_rc, h_vc, _ = self.gnss_model(complex(phi, CSTEP), V, sat_pos_e, sat_vel_e, arm[0], arm[1])
             d = sat_pos_e - (self._ecef(phi) + arm[0])
         else:
             h_r, h_v, t_e = self.gnss_model(phi, V, sat_pos_e, sat_vel_e)
-            h_rc, h_vc, _ = self.gnss_model(complex(phi, _CSTEP), V, sat_pos_e, sat_vel_e)
+            h_rc, h_vc, _ = self.gnss_model(complex(phi, CSTEP), V, sat_pos_e, sat_vel_e)
             d = sat_pos_e - self._ecef(phi)
         los = d / h_r[:, None]
         H = np.zeros((2 * m, ns))
-        H[:m, 3] = h_rc.imag / _CSTEP
-        H[m:, 3] = h_vc.imag / _CSTEP
+        H[:m, 3] = h_rc.imag / CSTEP
+        H[m:, 3] = h_vc.imag / CSTEP
         H[m:, 4] = -(los @ t_e)
         if self._lever:  # (LA.4) the arm's attitude (and gyro-bias) columns
             d_arm, d_turn, d_bias = arm[2], arm[3], arm[4]
@@ -1952,132 +1424,3 @@ class PaperEkf(NoiseScalable):
     @property
     def diverged(self) -> bool:
         return self._diverged
-
-
-# ============================================================================ numerics
-def _cross(u, v):
-    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
-
-
-def _riccati_rk4(P, A, hneg, Q, s, sig2, tau):
-    """RK4 of R' = A R + R A^T + Q - (R h + S)(R h + S)^T / sigma^2 (14), frozen coefficients.
-
-    Written with few numpy calls (each costs microseconds on 5 x 5 matrices).
-    """
-    h = -hneg
-    inv = 1.0 / sig2
-    multiply_outer = np.multiply.outer
-
-    def rhs(R):
-        AR = A @ R
-        AR += AR.T
-        AR += Q
-        M = R @ h
-        M += s
-        AR -= multiply_outer(M, M * inv)
-        return AR
-
-    k1 = rhs(P)
-    k2 = rhs(P + (0.5 * tau) * k1)
-    k3 = rhs(P + (0.5 * tau) * k2)
-    k4 = rhs(P + tau * k3)
-    k2 += k3
-    k2 *= 2.0
-    k2 += k1
-    k2 += k4
-    k2 *= tau / 6.0
-    k2 += P
-    k2 += k2.T
-    k2 *= 0.5
-    return k2
-
-
-def _riccati_rk4_h(P, H, tau, work):
-    """RK4 of (14)'s Riccati equation written as R' = [R; I]^T H [R; I] (frozen H).
-
-    The same step as :func:`_riccati_rk4` (equal to rounding) in fewer and cheaper numpy
-    calls (each costs about a microsecond on these small matrices, more than its
-    arithmetic): two ``np.dot`` per stage into work arrays, H pre-scaled by tau/2 so that a
-    stage returns m_j = tau/2 k_j. ``work = (Z, top, Zt, HZ, m1, m2, m3, m4)`` from
-    :meth:`PaperEkf._riccati_layout`: Z (2n, n) with the identity in its lower half and the
-    stage's R written into its upper half ``top``, Zt its transpose (views made once).
-    Returns a new array.
-    """
-    Z, top, Zt, HZ, m1, m2, m3, m4 = work
-    dot, add = np.dot, np.add
-    Hh = H * (0.5 * tau)
-    np.copyto(top, P)
-    dot(Hh, Z, HZ)
-    dot(Zt, HZ, m1)
-    add(P, m1, top)
-    dot(Hh, Z, HZ)
-    dot(Zt, HZ, m2)
-    add(P, m2, top)
-    dot(Hh, Z, HZ)
-    dot(Zt, HZ, m3)
-    add(m3, m3, top)
-    add(top, P, top)
-    dot(Hh, Z, HZ)
-    dot(Zt, HZ, m4)
-    add(m2, m3, m2)
-    add(m2, m2, m2)
-    add(m2, m1, m2)
-    add(m2, m4, m2)  # tau/2 (k1 + 2 k2 + 2 k3 + k4)
-    out = add(m2, m2.T)
-    np.multiply(out, 1.0 / 6.0, out)
-    add(out, P, out)  # P + tau/6 (...), symmetrised
-    return out
-
-
-def _check_rows(rows) -> None:
-    """:func:`_check_covariance` on P.tolist() (the rows are needed for the gain anyway)."""
-    if not (math.isfinite(sum(map(sum, rows))) and min([r[i] for i, r in enumerate(rows)]) >= 0.0):
-        raise FloatingPointError("non-finite or indefinite covariance")
-
-
-def _check_covariance(P) -> None:
-    """Raise FloatingPointError when P is non-finite or has a negative diagonal."""
-    d = P.diagonal()
-    if not (math.isfinite(float(P.sum())) and float(d.min()) >= 0.0):
-        raise FloatingPointError("non-finite or indefinite covariance")
-
-
-# ============================================================================ printed forms
-def printed_state_rhs(Y, omega_b, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float) -> np.ndarray:
-    """Appendix 2's F(Y, t) transcribed literally (printed Phi(beta, gamma), printed +centrifugal).
-
-    For checks only (spherical Earth). Y = [alpha, beta, gamma, phi, V_Y].
-    """
-    a, b, g, phi, V = (float(x) for x in Y)
-    sg, cg, cb, tb = math.sin(g), math.cos(g), math.cos(b), math.tan(b)
-    phi_printed = np.array([[sg / cb, cg / cb, 0.0], [cg, -sg, 0.0], [sg * tb, cg * tb, 1.0]])
-    lam, dlam, _, hh, dh = track_functions.scalars(phi)
-    C = euler_krylov_matrix(a, b, g) @ euler_krylov_matrix(-phi, lam + omega_earth * t, 0.0).T
-    rh = r + hh
-    vdot = (C.T[1] @ f_b - (2 * omega_earth + dlam * V / rh) * dlam * V * math.cos(phi) * math.sin(phi)
-            - dh * V ** 2 / rh ** 2 + omega_earth ** 2 * rh * math.cos(phi) * math.sin(phi))
-    return np.concatenate([phi_printed @ omega_b, [V / rh, vdot]])
-
-
-def printed_observer_13(Y, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float,
-                        centrifugal_sign: float = 1.0) -> tuple[float, np.ndarray]:
-    """(13) transcribed literally: H_a(Y, t) and H_w (1 x 3), with the c_ij of C = D B^T.
-
-    ``centrifugal_sign=+1`` as printed; -1 for the physical sign. Spherical Earth. For checks.
-    """
-    a, b, g, phi, V = (float(x) for x in Y)
-    lam, dlam, ddlam, hh, dh = track_functions.scalars(phi)
-    C = euler_krylov_matrix(a, b, g) @ euler_krylov_matrix(-phi, lam + omega_earth * t, 0.0).T
-    c = lambda i, j: C[i - 1, j - 1]  # noqa: E731 - c_ij as printed (1-based)
-    rh = r + hh
-    sp, cp = math.sin(phi), math.cos(phi)
-    k = dlam * cp
-    zay, zaz = f_b[1], f_b[2]
-    den = c(1, 1) - k * c(1, 2)
-    bracket = (-(2 * omega_earth + dlam * V / rh) * dlam * V * cp * sp - dh * V ** 2 / rh ** 2
-               + centrifugal_sign * omega_earth ** 2 * rh * cp * sp)
-    d_k = ddlam * cp - dlam * sp  # d/dphi (lambda' cos phi)
-    h_a = ((k * c(2, 2) - c(2, 1)) * zay + (k * c(3, 2) - c(3, 1)) * zaz + k * bracket + d_k * V ** 2 / rh
-           - (2 * omega_earth + dlam * V / rh) * V * (sp - dh / rh * cp)) / den
-    h_w = (C.T[0] - k * C.T[1]) / den
-    return float(h_a), h_w
