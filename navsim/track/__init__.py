@@ -79,8 +79,8 @@ from scipy.interpolate import (
     make_splprep,
 )
 
-from .earth import SPHERICAL, WGS84, EarthModel
-from .errors import ConfigError, TrackError
+from ..earth import SPHERICAL, WGS84, EarthModel
+from ..errors import ConfigError, TrackError
 
 __all__ = [
     "Track",
