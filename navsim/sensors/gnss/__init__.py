@@ -77,15 +77,15 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..earth import WGS84, EarthModel, mat_en
-from ..errors import ConfigError, check_nonnegative, file_value
+from ...earth import WGS84, EarthModel, mat_en
+from ...errors import ConfigError, check_nonnegative, file_value
 
 # The receiver's own fixes live receiver-side (the estimators use them too); re-exported here.
-from ..receiver import Fix, VelocityFix, least_squares_fix, velocity_fix
-from ._common import frozen_array
+from ...receiver import Fix, VelocityFix, least_squares_fix, velocity_fix
+from .._common import frozen_array
 
 if TYPE_CHECKING:
-    from ..types import NominalGnss
+    from ...types import NominalGnss
 
 __all__ = [
     "C_LIGHT",
@@ -833,7 +833,7 @@ class GnssErrorModel:
         the 8 km scale height of the standard atmosphere. ``lever_arm_b_m``: the antenna
         lever arm as surveyed at installation (body axes, m).
         """
-        from ..types import NominalGnss
+        from ...types import NominalGnss
 
         clock = bool(self.clock_enabled)
         iono, tropo = self.ionosphere_zenith_m > 0.0, self.troposphere_zenith_m > 0.0
