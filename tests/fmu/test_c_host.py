@@ -92,3 +92,39 @@ def test_c_host_misuse_gives_error_statuses(host, host_env, plant2, tmp_path):
                  "fmi2ExitInitializationMode refused in state 'step mode'",
                  "fmi2DoStep refused in state 'terminated'", "fmi2FreeInstance called after freeInstance; refused"):
         assert text in out.stderr, text
+
+
+@pytest.mark.slow  # builds a wheel and installs it with numpy and scipy into a new venv: about 2 min
+def test_c_host_with_a_wheel_install(host, plant2, scenario, tmp_path):
+    """The same C host and recipe with navsim installed from a wheel (``pip wheel
+    --no-deps`` of this checkout) into a fresh venv with its dependencies (numpy, scipy,
+    ... from the wheel's metadata, and pythonfmu, whose module the FMU's slave class
+    subclasses), the recipe printed by that venv's own ``navsim fmu host-env``: the core's
+    numbers and exit code 0, as with the editable install above."""
+    import sys
+    import venv
+
+    root = HERE.parent.parent
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheels), str(root)],
+                   check=True, capture_output=True, timeout=600)
+    (wheel,) = wheels.glob("navsim_track-*.whl")
+    fresh = tmp_path / "fresh"
+    venv.create(fresh, with_pip=True)
+    py = fresh / "bin" / "python"
+    subprocess.run([str(py), "-m", "pip", "install", "-q", str(wheel), "pythonfmu"], check=True,
+                   capture_output=True, timeout=1200)
+    out = subprocess.run([str(fresh / "bin" / "navsim"), "fmu", "host-env"], capture_output=True, text=True,
+                         check=True, env={k: v for k, v in os.environ.items() if not k.startswith("PYTHON")})
+    recipe = dict(line.removeprefix("export ").split("=", 1) for line in out.stdout.splitlines())
+    assert set(recipe) == {"LD_PRELOAD", "PYTHONHOME", "PYTHONPATH"}
+    site = Path(recipe["PYTHONPATH"])
+    assert site.is_relative_to(fresh) and (site / "navsim" / "fmu" / "runtime.py").is_file()
+    assert not list(site.glob("__editable__*"))  # a regular install: the package files themselves
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV", "LD_PRELOAD"))}
+    out = run_host(host, {**env, **recipe}, plant2, tmp_path / "plant", 50)
+    assert out.returncode == 0, f"exit code {out.returncode}: {out.stderr[-3000:]}"
+    rows = np.array([[float(x) for x in line.split()] for line in out.stdout.splitlines()])
+    sim = Simulator(scenario)
+    sim.reset(7)  # the host sets seed = 7
+    np.testing.assert_array_equal(rows[:, 1], sim.advance(50).truth.s)
