@@ -95,15 +95,25 @@ def _as_epochs(sat, meas, valid):
     return sat, np.where(valid, meas, 0.0), valid, single
 
 
+_EYE4 = np.eye(4)
+_EYE4.setflags(write=False)
+
+
 def _normal_solve(h, w, residual):
-    """Batched weighted normal equations; returns dx (k,4), inverse (k,4,4), rank_ok (k,)."""
+    """Batched weighted normal equations; returns dx (k,4), inverse (k,4,4), rank_ok (k,).
+
+    A singular epoch gets the identity in place of its normal matrix and a zero right-hand
+    side (its solution is discarded); when every epoch has full rank the replacements are
+    skipped (the same numbers, fewer array operations for a single epoch)."""
     normal = np.einsum("kmi,km,kmj->kij", h, w, h)
     rhs = np.einsum("kmi,km,km->ki", h, w, residual)
     singular = np.linalg.svd(normal, compute_uv=False)
     rank_ok = singular[:, -1] > 1e-12 * np.maximum(singular[:, 0], 1e-300)
-    safe = np.where(rank_ok[:, None, None], normal, np.eye(4))
-    inverse = np.linalg.inv(safe)
-    dx = np.einsum("kij,kj->ki", inverse, np.where(rank_ok[:, None], rhs, 0.0))
+    if not rank_ok.all():
+        normal = np.where(rank_ok[:, None, None], normal, _EYE4)
+        rhs = np.where(rank_ok[:, None], rhs, 0.0)
+    inverse = np.linalg.inv(normal)
+    dx = np.einsum("kij,kj->ki", inverse, rhs)
     return dx, inverse, rank_ok
 
 
@@ -150,17 +160,17 @@ def least_squares_fix(
     w = valid.astype(float)
     n_used = valid.sum(axis=1)
     converged = np.zeros(k, dtype=bool)
+    h = np.ones(sat.shape[:2] + (4,))  # [-unit, 1]: the unit vectors are written in place each iteration
     for _ in range(max_iter):
         los = sat - state[:, None, :3]
         dist = np.linalg.norm(los, axis=-1)
         dist = np.where(valid & (dist > 0.0), dist, 1.0)
-        unit = los / dist[..., None]
-        h = np.concatenate([-unit, np.ones(unit.shape[:2] + (1,))], axis=-1)
+        np.negative(los / dist[..., None], out=h[..., :3])
         residual = np.where(valid, rho - (dist + state[:, 3:4]), 0.0)
         dx, inverse, rank_ok = _normal_solve(h, w, residual)
         state = state + dx
         converged = rank_ok & (np.abs(dx).max(axis=1) < tol_m)
-        if np.all(converged | ~rank_ok):
+        if (converged | ~rank_ok).all():
             break
     # covariance at the solution
     los = sat - state[:, None, :3]
