@@ -825,8 +825,25 @@ class AlongTrackFilter(NoiseScalable):
         return block[1][k - block[0]]
 
     def _output_one(self, s: float, v: float, P: np.ndarray):
-        """:meth:`_outputs` of one state on Python floats (the same operations)."""
+        """:meth:`_outputs` of one state on Python floats (the same operations); the map
+        interpolation and the Jacobian J in one compiled call when numba is installed
+        (:func:`_map_row`, the same operations again), the covariance product by NumPy."""
         table, opt = self.table, self.options
+        kern = _map_row_kernel()
+        if kern is not None:
+            sol = np.empty((1, 9))
+            J = np.zeros((9, self.n_x))
+            kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol, J)
+            floor = self.__dict__.get("_floor")
+            if floor is None:  # the floors of _outputs, fixed by the options
+                att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
+                floor = self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2,
+                                                         att_floor], 3))
+            cov = (J @ P @ J.T + floor)[None]
+            if opt.attitude_floor_rad is None:
+                cov[:, 6:9, :] = np.nan
+                cov[:, :, 6:9] = np.nan
+            return sol, cov
         x = min(max(s, 0.0), table.length) * table._inv
         i = min(int(x), table._n - 2)
         u = x - i
@@ -990,3 +1007,51 @@ class AlongTrackFilter(NoiseScalable):
         self.t = float(batch.t[-1])
         self.last_extra = self._extra(None, 0)
         return EstimateBatch(solution=sol, covariance=cov, nis=nis_out, nis_dof=dof_out)
+
+
+def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
+    """The map interpolation of :meth:`AlongTrackFilter._output_one` at arc length ``s`` and
+    speed ``v`` (cubic Hermite on the table, linear in the rotation rates): fills ``sol``
+    (1, 9) and the nonzero columns 0, 1 of ``J`` (9, n_x). The same operations in the same
+    order as the float form there (compiled by numba: :func:`_map_row_kernel`)."""
+    x = min(max(s, 0.0), length) * inv
+    i = min(int(x), n - 2)
+    u = x - i
+    uu = u * u
+    w2 = (1 - u) * (1 - u)
+    h00, h10, h01, h11 = (1 + 2 * u) * w2, u * w2, uu * (3 - 2 * u), uu * (u - 1)
+    g00, g10, g01, g11 = 6 * uu - 6 * u, 3 * uu - 4 * u + 1, 6 * u - 6 * uu, 3 * uu - 2 * u
+    vals = np.empty(9)
+    dt_n = np.empty(3)
+    for j in range(9):
+        y0, y1 = values[i, 3 + j], values[i + 1, 3 + j]
+        d0, d1 = derivs[i, 3 + j] * step, derivs[i + 1, 3 + j] * step
+        vals[j] = h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1
+        if 3 <= j < 6:
+            dt_n[j - 3] = (g00 * y0 + g10 * d0 + g01 * y1 + g11 * d1) * inv
+    heading = (vals[6] + math.pi) % (2.0 * math.pi) - math.pi
+    sol[0, 0], sol[0, 1], sol[0, 2] = vals[0], vals[1], vals[2]
+    sol[0, 3], sol[0, 4], sol[0, 5] = v * vals[3], v * vals[4], v * vals[5]
+    sol[0, 6], sol[0, 7], sol[0, 8] = heading, vals[7], vals[8]
+    for j in range(3):
+        J[j, 0] = vals[3 + j]
+        J[3 + j, 0] = v * dt_n[j]
+        J[3 + j, 1] = vals[3 + j]
+        J[6 + j, 0] = (1 - u) * w_n[i, j] + u * w_n[i + 1, j]
+
+
+_MAP_ROW: list = []
+
+
+def _map_row_kernel():
+    """:func:`_map_row` compiled by numba (cached on disk), or None without numba."""
+    if not _MAP_ROW:
+        from ..strapdown import compiled
+
+        if compiled.available():
+            import numba
+
+            _MAP_ROW.append(numba.njit(cache=True, nogil=True)(_map_row))
+        else:
+            _MAP_ROW.append(None)
+    return _MAP_ROW[0]
