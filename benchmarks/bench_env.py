@@ -12,7 +12,7 @@ Rows
   simulator chunk generation (at least two chunk rounds); ``score=False`` (no episode
   record: scoring costs memory, not step time);
 * the same at N = 1024 with the IMU error model's NumPy path (the compiled white-noise
-  pass of :mod:`navsim.sensors._imu_kernel` switched off: the state before it);
+  pass of :mod:`navsim.sensors.imu.kernel` switched off: the state before it);
 * the floor of the sensor model: drawing, for N = 1024 members with their own
   generators, only the standard normals one env-step needs (6 (R + 2) = 36 per IMU
   sample, plus the GNSS and outage blocks of one epoch per ``steps_per_epoch`` steps),
@@ -41,7 +41,7 @@ import gymnasium as gym
 import numpy as np
 
 import navsim.envs  # noqa: F401  (registers the ids)
-from navsim.sensors import _imu_kernel
+from navsim.sensors.imu import kernel as _imu_kernel
 from navsim.sensors import imu as imu_mod
 
 

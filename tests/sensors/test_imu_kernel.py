@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navsim.sensors import _imu_kernel
+from navsim.sensors.imu import kernel as _imu_kernel
 from navsim.sensors import imu as imu_mod
 from navsim.sensors.imu import ImuErrorModel, ImuState, SensorErrors, VibrationHarmonic, apply_imu_errors_batch
 

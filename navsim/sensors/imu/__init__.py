@@ -108,12 +108,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cholesky, hilbert
 
-from ..errors import ConfigError
-from . import _imu_kernel
-from ._common import frozen_array
+from ...errors import ConfigError
+from . import kernel as _imu_kernel
+from .._common import frozen_array
 
 if TYPE_CHECKING:
-    from ..types import NominalImu
+    from ...types import NominalImu
 
 __all__ = [
     "is_error_free",
@@ -142,7 +142,7 @@ MAX_ORDER = 8
 """Largest number R of multiple-integral orders the error model handles."""
 
 USE_KERNEL = True
-"""Use the compiled white-noise pass when numba is installed (:mod:`navsim.sensors._imu_kernel`;
+"""Use the compiled white-noise pass when numba is installed (:mod:`navsim.sensors.imu.kernel`;
 the numbers are the same either way)."""
 
 QUANTIZATION_BLOCK = 1024
@@ -1120,7 +1120,7 @@ def apply_imu_errors_batch(
             out = out + _mat3_apply(model.g_sensitivity, dv_r)
             rate = rate + _mat3_apply(model.g_sensitivity, f_b)
         if kern is not None and np.any(density[s_idx]) and not lsb_levels[s_idx, 0] > 0.0:
-            # compiled white-noise pass (navsim.sensors._imu_kernel): the same terms in the
+            # compiled white-noise pass (navsim.sensors.imu.kernel): the same terms in the
             # same order as below, without repeating the shared values per member
             dest = None if dest_all is None else dest_all[s_idx]
             outputs.append(_kernel_sensor(kern, s_idx, sensor, out, rate, z, order, members, turn_on, gm_start,
@@ -1393,7 +1393,7 @@ def nominal_imu(model: ImuErrorModel) -> NominalImu:
     random walks; bias sigma = hypot(RMS of the constant + turn-on sigma, RMS of the
     Gauss-Markov instability sigma); correlation time = the shortest of the axes.
     """
-    from ..types import NominalImu
+    from ...types import NominalImu
 
     nominal = nominal_noise(model)
 
