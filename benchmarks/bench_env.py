@@ -38,11 +38,11 @@ import statistics
 import time
 
 import gymnasium as gym
+import navsim.envs  # noqa: F401  (registers the ids)
 import numpy as np
 
-import navsim.envs  # noqa: F401  (registers the ids)
+from navsim.sensors.imu import apply as imu_apply
 from navsim.sensors.imu import kernel as _imu_kernel
-from navsim.sensors import imu as imu_mod
 
 
 def _single_rate(env, action, seconds: float) -> float:
@@ -135,7 +135,7 @@ def main() -> None:
         vector_rows.append(("native vector env, N = 1024, NumPy IMU path (no numba)", 1024, "vector_entry_point", 1))
     cpu: dict[str, list[float]] = {}
     for label, n, mode, threads in vector_rows:
-        imu_mod.USE_KERNEL = "NumPy IMU path" not in label
+        imu_apply.USE_KERNEL = "NumPy IMU path" not in label
         extra = {"threads": threads} if mode == "vector_entry_point" else {}
         venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False, **extra)
         venv.reset(seed=0)
@@ -147,7 +147,7 @@ def main() -> None:
         rates[label] = [w for _, w in measured]
         cpu[label] = [c for c, _ in measured]
         venv.close()
-    imu_mod.USE_KERNEL = True
+    imu_apply.USE_KERNEL = True
     floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
     floor = _draw_floor(1024, 256, rounds)
     cpu[floor_label] = floor

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navsim.sensors.imu import kernel as _imu_kernel
 from navsim.sensors import imu as imu_mod
 from navsim.sensors.imu import ImuErrorModel, ImuState, SensorErrors, VibrationHarmonic, apply_imu_errors_batch
+from navsim.sensors.imu import apply as imu_apply
+from navsim.sensors.imu import kernel as _imu_kernel
 
 pytestmark = pytest.mark.skipif(not _imu_kernel.available(), reason="numba not installed (extra 'fast')")
 
@@ -49,7 +50,7 @@ def test_kernel_equals_numpy_path(name, monkeypatch):
     t, dtheta_r, dv_r, omega, force = _truth(np.random.default_rng(5))
     results = {}
     for use in (True, False):
-        monkeypatch.setattr(imu_mod, "USE_KERNEL", use)
+        monkeypatch.setattr(imu_apply, "USE_KERNEL", use)
         rngs = [np.random.default_rng(100 + j) for j in range(B)]
         states = [ImuState.initial(model, r) for r in rngs]
         outs = []
@@ -62,7 +63,7 @@ def test_kernel_equals_numpy_path(name, monkeypatch):
         for field in ("dtheta_r", "dv_r", "rate_b", "accel_b"):
             np.testing.assert_array_equal(getattr(fast, field), getattr(ref, field), err_msg=field)
     # written into caller's buffers (out=, as the simulator does): the same numbers
-    monkeypatch.setattr(imu_mod, "USE_KERNEL", True)
+    monkeypatch.setattr(imu_apply, "USE_KERNEL", True)
     rngs = [np.random.default_rng(100 + j) for j in range(B)]
     states = [ImuState.initial(model, r) for r in rngs]
     big = imu_mod.ImuOutput(np.full((B, N, R, 3), np.nan), np.full((B, N, R, 3), np.nan), np.full((B, N, 3), np.nan),

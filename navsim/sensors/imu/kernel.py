@@ -18,7 +18,7 @@ all, reading the draws once and writing each output once.
 
 :func:`white_noise_into` is plain Python in the subset numba compiles; :func:`kernel`
 returns it compiled (numba, optional extra ``fast``; compiled on the first call and cached
-on disk) or None without numba. ``navsim.sensors.imu.USE_KERNEL`` switches it off.
+on disk) or None without numba. ``navsim.sensors.imu.apply.USE_KERNEL`` switches it off.
 """
 
 from __future__ import annotations
