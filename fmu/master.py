@@ -274,12 +274,6 @@ class _Plan:
         return out
 
 
-def _prior_covariance(scenario) -> np.ndarray:
-    from navsim.simulator import Simulator
-
-    return Simulator(scenario).reset(0).prior.covariance  # from the [initial] section only
-
-
 def plant_scenario(plant: FmuInstance, parameters: dict | None = None):
     """The effective scenario of a navsim plant FMU instance with ``parameters``."""
     from .runtime import effective_scenario, load_embedded, plant_defaults
@@ -317,9 +311,9 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
     (FMI overhead included).
     """
     from navsim.earth import earth_model
-    from navsim.episode import EpisodeRecord
+    from navsim.episode import EpisodeRecorder
     from navsim.errors import ConfigError
-    from navsim.simulator import Prior
+    from navsim.types import NavSolution, Prior
 
     if master not in MASTERS:
         raise ConfigError("master", f"one of {MASTERS}", master)
@@ -354,7 +348,7 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
         prior = Prior(t=0.0, lat=float(sensors["prior.lat_rad"]), lon=float(sensors["prior.lon_rad"]),
                       h=float(sensors["prior.h_m"]), velocity_n=np.asarray(sensors["prior.velocity_n"], float),
                       heading=float(sensors["prior.heading_rad"]), pitch=float(sensors["prior.pitch_rad"]),
-                      roll=float(sensors["prior.roll_rad"]), covariance=_prior_covariance(scenario))
+                      roll=float(sensors["prior.roll_rad"]), covariance=scenario.initial.covariance())
         rows_truth, rows_nav, cpu = [], [], []
         epochs = []  # (plant step, t, n_valid, receiver outage)
         clock = time.process_time
@@ -397,27 +391,20 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
         est.free()
 
     m = len(rows_nav)  # plant steps processed: n, or n - 1 under a lagged master
-    rows_truth = rows_truth[:m]
+    recorder = EpisodeRecorder(m)
+    for i, (r, tr) in enumerate(zip(rows_nav, rows_truth)):  # each estimate refers to the plant step it processed
+        if r["nav.t_s"] != (i + 1) * dt or tr["time.step"] != i + 1:
+            raise FmuCallError(f"estimate {i}: nav.t_s = {r['nav.t_s']!r} s, plant step {tr['time.step']}")
+        recorder.add_truth(i, tr["truth.s_m"], tr["truth.lat_rad"], tr["truth.lon_rad"], tr["truth.h_m"],
+                           np.asarray(tr["truth.velocity_n"], dtype=float),
+                           [tr["truth.heading_rad"], tr["truth.pitch_rad"], tr["truth.roll_rad"]])
+        cov = np.asarray(r["nav.covariance"], dtype=float).reshape(9, 9)
+        nis = float(r["nav.nis"])
+        recorder.add_estimate(i, NavSolution(
+            t=r["nav.t_s"], lat=r["nav.lat_rad"], lon=r["nav.lon_rad"], h=r["nav.h_m"],
+            velocity_n=np.asarray(r["nav.velocity_n"], dtype=float), heading=r["nav.heading_rad"],
+            pitch=r["nav.pitch_rad"], roll=r["nav.roll_rad"], covariance=None if np.all(np.isnan(cov)) else cov,
+            nis=None if np.isnan(nis) else nis, nis_dof=int(r["nav.nis_dof"])), cpu[i])
     epochs = [e for e in epochs if e[0] < m]
-
-    def col(rows, key):
-        return np.array([r[key] for r in rows], dtype=float)
-
-    for i, r in enumerate(rows_nav):  # each estimate refers to the plant step it processed
-        if r["nav.t_s"] != (i + 1) * dt or rows_truth[i]["time.step"] != i + 1:
-            raise FmuCallError(f"estimate {i}: nav.t_s = {r['nav.t_s']!r} s, plant step {rows_truth[i]['time.step']}")
-    cov = np.array([r["nav.covariance"] for r in rows_nav], dtype=float).reshape(m, 9, 9)
-    return EpisodeRecord(
-        scenario=scenario, seed=seed, estimator=name or "fmu", earth=earth_model(scenario.earth),
-        t=(np.arange(m) + 1) * dt, truth_s=col(rows_truth, "truth.s_m"), truth_lat=col(rows_truth, "truth.lat_rad"),
-        truth_lon=col(rows_truth, "truth.lon_rad"), truth_h=col(rows_truth, "truth.h_m"),
-        truth_velocity_n=col(rows_truth, "truth.velocity_n").reshape(m, 3),
-        truth_hpr=np.column_stack([col(rows_truth, f"truth.{a}_rad") for a in ("heading", "pitch", "roll")]),
-        est_lat=col(rows_nav, "nav.lat_rad"), est_lon=col(rows_nav, "nav.lon_rad"), est_h=col(rows_nav, "nav.h_m"),
-        est_velocity_n=col(rows_nav, "nav.velocity_n").reshape(m, 3),
-        est_hpr=np.column_stack([col(rows_nav, f"nav.{a}_rad") for a in ("heading", "pitch", "roll")]),
-        est_cov=None if np.all(np.isnan(cov)) else cov, nis=col(rows_nav, "nav.nis"),
-        nis_dof=np.array([r["nav.nis_dof"] for r in rows_nav], dtype=int), step_time_s=np.array(cpu),
-        gnss_t=np.array([e[1] for e in epochs]), gnss_n_valid=np.array([e[2] for e in epochs], dtype=int),
-        gnss_receiver_outage=np.array([e[3] for e in epochs], dtype=bool), prior=prior,
-    )
+    recorder.add_epochs([e[1] for e in epochs], [e[2] for e in epochs], [e[3] for e in epochs])
+    return recorder.record(scenario, seed, name or "fmu", earth_model(scenario.earth), prior)

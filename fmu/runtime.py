@@ -606,13 +606,14 @@ class EstimatorRuntime(_RuntimeBase):
     kind = "estimator"
 
     def __init__(self, resources: str, fmi: int, log=None):
-        from navsim.simulator import Simulator
+        from navsim.earth import earth_model
+        from navsim.simulator import build_gnss
 
         super().__init__(resources, fmi, log)
-        # The simulator object only supplies the map and the nominal sensor specification
-        # (navsim.episode.make_context) and the prior covariance of the [initial] section.
-        self.sim = Simulator(self.base_scenario)
-        self.dims = Dimensions.of(self.sim)
+        # no simulator: the context comes from make_context(scenario) at initialisation, the
+        # channel order from the scenario's constellation
+        self.prn = np.asarray(build_gnss(self.base_scenario, earth_model(self.base_scenario.earth))[0].prn)
+        self.dims = Dimensions.of_scenario(self.base_scenario, len(self.prn))
         defaults = {"estimator.name": self.meta.get("estimator", ""),
                     "estimator.options": self.meta.get("estimator_options", "")}
         self.store = ValueStore(estimator_variables(self.dims, defaults), fmi)
@@ -643,10 +644,9 @@ class EstimatorRuntime(_RuntimeBase):
             self.estimator = estimators.make(name, **options)
         except NavsimError as exc:
             raise FmuError(f"bad parameter value: {exc}") from None
-        self.context = make_context(self.sim)
-        self.prior_covariance = self.sim.reset(0).prior.covariance  # depends on [initial] only
+        self.context = make_context(self.base_scenario)
+        self.prior_covariance = self.base_scenario.initial.covariance()
         self.timing = self.base_scenario.timing
-        self.prn = np.asarray(self.sim.constellation.prn)
         self.nav_ticks = self.timing.nav_ticks
         self.end_tick = self.timing.steps * self.nav_ticks
         self.tick = 0  # the estimator FMU's time in simulator ticks

@@ -140,6 +140,13 @@ class Dimensions:
     odometer: bool = False
 
     @classmethod
+    def of_scenario(cls, scenario, channels: int) -> "Dimensions":
+        """The dimensions of a :class:`navsim.scenario.Scenario` whose constellation has
+        ``channels`` satellites (no simulator built)."""
+        return cls(channels=int(channels), orders=int(scenario.imu.orders),
+                   samples_per_step=int(scenario.timing.samples_per_step), odometer=bool(scenario.odometer.enabled))
+
+    @classmethod
     def of(cls, simulator) -> "Dimensions":
         """The dimensions of a built :class:`navsim.simulator.Simulator`."""
         return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),

@@ -217,6 +217,20 @@ class EpisodeRecorder:
             self.gnss_n_valid.append(g.valid.sum(axis=1))
             self.gnss_outage.append(chunk.receiver_outage)
 
+    def add_truth(self, k: int, s: float, lat: float, lon: float, h: float, velocity_n: Any, hpr: Any) -> None:
+        """The truth of step ``k`` from per-step values (a face that sees no chunk, e.g. the
+        FMU master reading the plant's outputs): arc length, lat, lon, h, ENU velocity (3,),
+        heading/pitch/roll (3,)."""
+        self.s[k], self.lat[k], self.lon[k], self.h[k] = s, lat, lon, h
+        self.velocity_n[k] = velocity_n
+        self.hpr[k] = hpr
+
+    def add_epochs(self, t: Any, n_valid: Any, receiver_outage: Any) -> None:
+        """GNSS availability of epochs, in time order: times (s), valid channels, receiver outage."""
+        self.gnss_t.append(np.asarray(t, dtype=float))
+        self.gnss_n_valid.append(np.asarray(n_valid, dtype=int))
+        self.gnss_outage.append(np.asarray(receiver_outage, dtype=bool))
+
     def _nis_arrays(self) -> None:
         if self.nis_array is None:
             self.nis_array = np.full(self.n, np.nan)

@@ -324,6 +324,15 @@ class InitialUncertainty:
             if not (value >= 0 and math.isfinite(value)):
                 raise ConfigError(f"initial.{name}", "a finite sigma >= 0", value)
 
+    def covariance(self) -> Any:
+        """The prior's 9 x 9 covariance over :data:`navsim.types.STATE_LABELS`: diagonal,
+        ``position_m^2`` (m^2), ``velocity_mps^2`` (m^2/s^2), ``radians(attitude_deg)^2``
+        (rad^2), three axes each."""
+        import numpy as np
+
+        sig_att = math.radians(self.attitude_deg)
+        return np.diag(np.repeat([self.position_m**2, self.velocity_mps**2, sig_att**2], 3))
+
 
 @dataclass(frozen=True, slots=True)
 class Scenario:

@@ -379,14 +379,13 @@ class Simulator:
         r_n, r_e = self.earth.radii(truth0.lat[0])
         lat = truth0.lat[0] + pos_err_n[1] / (r_n + truth0.h[0])
         lon = truth0.lon[0] + pos_err_n[0] / ((r_e + truth0.h[0]) * math.cos(truth0.lat[0]))
-        variances = np.repeat([init.position_m**2, init.velocity_mps**2, sig_att**2], 3)
         return Prior(
             t=0.0, lat=float(lat), lon=float(lon), h=float(truth0.h[0] + pos_err_n[2]),
             velocity_n=truth0.velocity_n[0] + init.velocity_mps * e[3:6],
             heading=float(truth0.heading[0] + sig_att * e[8]),
             pitch=float(truth0.pitch[0] + sig_att * e[6]),
             roll=float(truth0.roll[0] + sig_att * e[7]),
-            covariance=np.diag(variances),
+            covariance=init.covariance(),
         )
 
     def truth_at(self, t) -> TrueState:

@@ -105,8 +105,11 @@ def test_c_host_with_a_wheel_install(host, plant2, scenario, tmp_path):
     import venv
 
     root = HERE.parent.parent
+    src = tmp_path / "src"  # a copy: setuptools builds in the source tree, and a stale build/ would leak in
+    shutil.copytree(root, src, ignore=shutil.ignore_patterns(".git", ".venv*", "build", "dist", "*.egg-info",
+                                                            "__pycache__", ".pytest_cache", "out"))
     wheels = tmp_path / "wheels"
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheels), str(root)],
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheels), str(src)],
                    check=True, capture_output=True, timeout=600)
     (wheel,) = wheels.glob("navsim_track-*.whl")
     fresh = tmp_path / "fresh"

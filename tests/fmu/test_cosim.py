@@ -91,3 +91,29 @@ def test_odometer_through_the_fmus(fmu_dir, scenario):
             row = inst.get(["odometer.ds_m", "odometer.pulses"])
             assert row["odometer.pulses"] == int(core.pulses[5 * k:5 * k + 5].sum())
             assert row["odometer.ds_m"] == pytest.approx(float(core.ds_m[5 * k:5 * k + 5].sum()), rel=1e-15, abs=1e-15)
+
+
+def test_estimator_fmu_builds_no_simulator(estimator2, scenario, tmp_path, monkeypatch):
+    """The estimator FMU takes its context from make_context(scenario) and the prior
+    covariance from the [initial] section: no Simulator is built (its constructor is made
+    to fail here); the covariance is the one the simulator's prior carries."""
+    import zipfile
+
+    import navsim.simulator
+    from navsim.fmu.runtime import EstimatorRuntime
+    from navsim.simulator import Simulator
+
+    want = Simulator(scenario).reset(0).prior.covariance
+    with zipfile.ZipFile(estimator2) as z:
+        z.extractall(tmp_path)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the estimator FMU built a Simulator")
+
+    monkeypatch.setattr(navsim.simulator.Simulator, "__init__", refuse)
+    rt = EstimatorRuntime(str(tmp_path / "resources"), 2)
+    rt.exit_initialization_mode()
+    np.testing.assert_array_equal(rt.prior_covariance, want)
+    assert rt.context.nav_period_s == scenario.timing.nav_period_s and rt.context.orders == scenario.imu.orders
+    assert rt.context.config_hash == scenario.config_hash()
+    assert len(rt.prn) == rt.dims.channels == 24
