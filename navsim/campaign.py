@@ -32,9 +32,12 @@ the worker builds the scenario from its resolved dictionary, runs
 settings). Executors:
 
 - local (default): :class:`concurrent.futures.ProcessPoolExecutor` with every core
-  (``--workers N`` to choose), processes started by ``spawn`` (no fork of a process
-  that runs threads) with one BLAS / OpenMP thread each unless the environment says
-  otherwise; ``workers=0`` runs the episodes in this process;
+  (``--workers N`` to choose), processes forked from a fork server that imported the
+  episode code once (``forkserver``, where the platform has it: no fork of the campaign
+  process, which may run threads; elsewhere ``spawn``, a fresh interpreter per worker),
+  with one BLAS / OpenMP thread each unless the environment says otherwise; every
+  worker dies with the campaign process (:func:`_die_with_parent`); ``workers=0`` runs
+  the episodes in this process;
 - Dask: ``--scheduler tcp://HOST:PORT`` submits the same tasks to an existing
   ``distributed`` cluster (``pip install 'navsim-track[campaign]'``), one future per
   episode, collected with ``distributed.as_completed``. When a worker dies the
@@ -522,14 +525,28 @@ def _single_threaded_children():
             os.environ.pop(k, None)
 
 
-def _die_with_parent(parent_pid: int) -> None:
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _die_with_parent(campaign_pid: int) -> None:
     """Worker initializer: the worker is killed when the campaign process dies, even by
-    SIGKILL (Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; elsewhere a watcher thread
-    polls the parent id once a second and exits the worker when it changes)."""
+    SIGKILL. Its parent is the campaign process (``spawn``) or the fork server
+    (``forkserver``), which exits when the campaign process dies. Linux:
+    ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` for the death of the parent; everywhere a watcher
+    thread checks once a second that the parent is the same and the campaign process
+    alive, and exits the worker otherwise."""
     import signal
     import sys
     import threading
 
+    parent = os.getppid()
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -538,16 +555,30 @@ def _die_with_parent(parent_pid: int) -> None:
             libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
         except (OSError, AttributeError):
             pass
-    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
+    if not _alive(campaign_pid) or (parent == 1 and campaign_pid != 1):  # died before the prctl took effect
         os._exit(1)
 
     def watch():
         while True:
             time.sleep(1.0)
-            if os.getppid() != parent_pid:
+            if os.getppid() != parent or not _alive(campaign_pid):
                 os._exit(1)
 
     threading.Thread(target=watch, name="navsim-parent-watch", daemon=True).start()
+
+
+# imported once by the fork server, so that forked workers start with the episode code loaded
+_FORKSERVER_PRELOAD = ["navsim.campaign", "navsim.report", "navsim.episode", "navsim.estimators", "navsim.metrics"]
+
+
+def _worker_context():
+    """The start method of local workers: ``forkserver`` (preloading the episode code)
+    where available, else ``spawn``."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(_FORKSERVER_PRELOAD)
+        return ctx
+    return multiprocessing.get_context("spawn")
 
 
 def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeTask, dict], None]) -> None:
@@ -555,9 +586,9 @@ def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeT
         for task in todo:
             handle(task, run_episode_task(task))
         return
-    # spawn: a fresh interpreter per worker (no fork of a process that runs threads),
-    # started during the submissions below with the environment set there
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+    # forkserver (or spawn): no fork of this process, which may run threads; the fork
+    # server and the workers start during the submissions below with the environment set there
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=_worker_context(),
                                   initializer=_die_with_parent, initargs=(os.getpid(),))
     try:
         with _single_threaded_children():

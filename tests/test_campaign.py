@@ -389,16 +389,31 @@ def test_sigkill_of_the_campaign_parent_leaves_no_worker_process(tmp_path):
     )
     proc = subprocess.Popen([sys.executable, "-c", code, str(spec_file)], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
+    def descendants(pid):
+        try:
+            kids = [int(p) for p in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+        except FileNotFoundError:
+            return []
+        return kids + [d for k in kids for d in descendants(k)]
+
+    def command(pid):
+        try:
+            return Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            return ""
+
+    if not Path(f"/proc/{proc.pid}/task/{proc.pid}/children").exists():
+        pytest.skip("no /proc children listing on this system")
+    # the workers: children of the campaign process (spawn) or of its fork server (forkserver,
+    # forked without exec: they show the server's command line); the fork server counts too
     children = []
     deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and len(children) < 2:
+    while time.monotonic() < deadline and len(children) < 3:
         time.sleep(0.5)
-        try:
-            children = [int(p) for p in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
-        except OSError:
-            pytest.skip("no /proc children listing on this system")
-        children = [c for c in children if "spawn_main" in Path(f"/proc/{c}/cmdline").read_bytes().decode(errors="replace")]
-    assert len(children) >= 1, "no worker process started"
+        children = [c for c in descendants(proc.pid) if "spawn_main" in command(c) or "forkserver" in command(c)]
+        if children and all("spawn_main" in command(c) for c in children) and len(children) >= 2:
+            break
+    assert len(children) >= 2, f"no worker process started: {children}"
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
     alive = set(children)
