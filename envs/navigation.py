@@ -75,6 +75,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -87,12 +88,13 @@ from navsim.scenario import Scenario, load_scenario
 from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, PreparedChunk, prepare_chunk
-from .spaces import ACTION_SCALE, action_space, observation_space
+from .spaces import ACTION_SCALE, action_space, layout_space
 
 __all__ = ["NavigationEnv", "resolve_scenario", "SCENARIO_SECTIONS"]
 
-SCENARIO_SECTIONS = ("name", "description", "earth", "timing", "track", "motion", "imu", "gnss", "outages", "initial",
-                     "odometer")
+SCENARIO_SECTIONS = tuple(f.name for f in dataclasses.fields(Scenario) if f.name != "base_dir")
+"""The scenario's sections and top-level keys, read from :class:`~navsim.scenario.Scenario` (a new
+sensor section is an env keyword by its declaration)."""
 
 
 def resolve_scenario(scenario: str | Scenario, overrides: dict) -> Scenario:
@@ -172,7 +174,7 @@ class NavigationEnv(gym.Env):
         self.n_steps = timing.steps
         k = len(self.prn)
         self._odometer = bool(self.scenario.odometer.enabled)
-        self.observation_space = observation_space(timing, self.scenario.imu.orders, k, odometer=self._odometer)
+        self.observation_space = layout_space(Layout.of(self.scenario, k))  # every optional sensor by its Signal
         self.physical_action = bool(physical_action)
         self.action_space = action_space(self.physical_action)
         self.action_scale = np.ones(9) if self.physical_action else ACTION_SCALE.copy()

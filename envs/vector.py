@@ -49,7 +49,7 @@ from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, chunk_truth_table, held_flags
 from .navigation import resolve_scenario
-from .spaces import ACTION_SCALE, action_space, observation_space
+from .spaces import ACTION_SCALE, action_space, layout_space
 
 __all__ = ["NavigationVectorEnv"]
 
@@ -117,8 +117,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.n_steps = timing.steps
         self.n_sats = len(self.prn)
         self._has_odometer = bool(self.scenario.odometer.enabled)
-        self.single_observation_space = observation_space(timing, self.scenario.imu.orders, self.n_sats,
-                                                          odometer=self._has_odometer)
+        self.single_observation_space = layout_space(Layout.of(self.scenario, self.n_sats))  # by the Signals
         self.single_action_space = action_space(self.physical_action)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)

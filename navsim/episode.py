@@ -43,7 +43,8 @@ def make_context(source: Scenario | Simulator) -> Context:
     and each sensor's error model are built from the scenario and asked for their
     nominal specification, :func:`navsim.sensors.imu.nominal_imu`,
     :meth:`navsim.sensors.gnss.GnssErrorModel.nominal`,
-    :meth:`navsim.sensors.odometer.OdometerModel.nominal`) or a built
+    :meth:`navsim.sensors.odometer.OdometerModel.nominal`,
+    :meth:`navsim.sensors.baro.BaroModel.nominal` at the track's height at the start) or a built
     :class:`~navsim.simulator.Simulator` (its track and models are reused). Both give
     the same context for the same scenario.
     """
@@ -54,10 +55,12 @@ def make_context(source: Scenario | Simulator) -> Context:
         imu_model = build_imu_model(scenario)
         gnss_model = build_gnss_error_model(scenario)
         odometer_model = scenario.odometer.model() if scenario.odometer.enabled else None
+        baro_model = scenario.baro.model() if scenario.baro.enabled else None
     else:
         scenario, track, earth = source.scenario, source.track, source.earth
         imu_model, gnss_model = source.imu_model, source.gnss_model
         odometer_model = getattr(source, "odometer_model", None)
+        baro_model = getattr(source, "baro_model", None)
     timing = scenario.timing
     return Context(
         track=track, earth=earth, nav_period_s=timing.nav_period_s, imu_period_s=timing.imu_period_s,
@@ -66,6 +69,7 @@ def make_context(source: Scenario | Simulator) -> Context:
         gnss=gnss_model.nominal(scenario.gnss.lever_arm_m),  # the lever arm as surveyed at installation
         scenario_name=scenario.name, config_hash=scenario.config_hash(),
         odometer=None if odometer_model is None else odometer_model.nominal(),
+        baro=None if baro_model is None else baro_model.nominal(float(np.ravel(track.geodetic(scenario.motion.start_s_m)[2])[0])),
     )
 
 
@@ -89,6 +93,7 @@ def measurement_batch(chunk: Chunk, prn: np.ndarray, dt: float) -> MeasurementBa
         dtheta_sub=imu.dtheta_sample[:, :, 0], dv_sub=imu.dv_sample[:, :, 0],
         gnss=tuple(sorted(_epochs(chunk, prn).items())),
         odometer_ds_m=None if chunk.odometer is None else chunk.odometer.ds_m,
+        baro_alt_m=None if chunk.baro is None else chunk.baro.altitude_m,
     )
 
 
@@ -115,11 +120,13 @@ def measurements(chunk: Chunk, prn: np.ndarray, dt: float) -> Iterator[Measureme
     epochs = _epochs(chunk, prn)
     imu = chunk.imu
     odometer = None if chunk.odometer is None else chunk.odometer.ds_m.tolist()
+    baro = None if chunk.baro is None else chunk.baro.altitude_m.tolist()
     for i in range(len(chunk)):
         yield Measurement(
             step=chunk.step0 + i, t=float(chunk.t[i]), dt=dt, dtheta_r=imu.dtheta_r[i], dv_r=imu.dv_r[i],
             dtheta_sub=imu.dtheta_sample[i, :, 0], dv_sub=imu.dv_sample[i, :, 0], gnss=epochs.get(i),
             odometer_ds_m=None if odometer is None else odometer[i],
+            baro_alt_m=None if baro is None else baro[i],
         )
 
 

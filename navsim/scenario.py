@@ -1,7 +1,8 @@
 """Scenarios: frozen, typed configuration that round-trips to TOML.
 
 A scenario is track + motion + IMU + GNSS + outages + duration + rates + initial
-uncertainty (+ an optional wheel odometer, ``[odometer]``, off by default). The ``[outages]`` table holds the fields of
+uncertainty (+ an optional wheel odometer, ``[odometer]``, and barometric altimeter, ``[baro]``
+(:class:`navsim.sensors.baro.BaroConfig`), both off by default). The ``[outages]`` table holds the fields of
 :class:`navsim.sensors.outages.OutageModel` directly. Bundled scenarios live in ``navsim/scenarios/*.toml``; :func:`load_scenario`
 takes a bundled name or a path. Every value is checked when the scenario is built, and a
 bad one raises :class:`~navsim.errors.ConfigError` naming the field (dotted path), the
@@ -36,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, check_multiple, check_positive
+from .sensors.baro import BaroConfig
 from .sensors.odometer import PRESET_NAMES as _ODOMETER_PRESETS
 from .sensors.odometer import OdometerModel
 from .sensors.outages import OutageModel
@@ -55,6 +57,7 @@ __all__ = [
     "GnssConfig",
     "InitialUncertainty",
     "OdometerConfig",
+    "BaroConfig",
     "Scenario",
     "load_scenario",
     "list_scenarios",
@@ -349,6 +352,7 @@ class Scenario:
     outages: OutageModel = OutageModel()
     initial: InitialUncertainty = InitialUncertainty()
     odometer: OdometerConfig = OdometerConfig()
+    baro: BaroConfig = BaroConfig()
     base_dir: str = ""  # folder that relative file names refer to (not serialised)
 
     def __post_init__(self):
@@ -443,7 +447,7 @@ class Scenario:
 _HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]), ("motion", "speed_amplitude_mps", 0.0),
                          ("motion", "speed_period_s", 300.0))
 
-_OMIT_SECTION_IF_DEFAULT = (("odometer", OdometerConfig()),)
+_OMIT_SECTION_IF_DEFAULT = (("odometer", OdometerConfig()), ("baro", BaroConfig()))
 """Sections added after scenarios were first published, left out of :meth:`Scenario.to_dict`
 (so of the TOML text and the hash) while they hold their defaults."""
 """(section, field, default as in :meth:`Scenario.to_dict`) left out of the hash at the default."""

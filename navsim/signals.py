@@ -38,6 +38,8 @@ name                       shape        unit      meaning
 ``sat_vel_e``              (k, 3)       m/s       satellite ECEF velocity
 ``odometer_ds``            (1,)         m         odometer distance over the step (only
                                                   with ``[odometer] enabled``)
+``baro_alt``               (1,)         m         barometric pressure altitude at the step
+                                                  end (only with ``[baro] enabled``)
 ``solution``               (9,)         mixed     lat, lon (rad), h (m), vENU (m/s),
                                                   heading, pitch, roll (rad)
 ``covariance``             (9, 9)       SI        over STATE_LABELS (m, m/s, rad)
@@ -93,6 +95,7 @@ __all__ = [
     "MAX_RANGE_RATE_MPS",
     "MAX_SAT_SPEED_MPS",
     "MAX_WHEEL_SPEED_MPS",
+    "MAX_PRESSURE_ALTITUDE_M",
     "UNIT_EXPONENTS",
     "SOLUTION_FIELDS",
     "TRUTH_FIELDS",
@@ -101,6 +104,7 @@ __all__ = [
     "SIGNALS",
     "OBS_KEYS",
     "ODOMETER_KEY",
+    "BARO_KEY",
     "signal",
     "observation_signals",
     "ObservationCodec",
@@ -120,6 +124,9 @@ MAX_SAT_SPEED_MPS = 1.0e4
 MAX_WHEEL_SPEED_MPS = 500.0
 """Bound of the wheel speed, m/s: the odometer distance of a step is within +-500 dt m
 (above any rail or road vehicle, with room for scale-factor and slip errors)."""
+MAX_PRESSURE_ALTITUDE_M = 2.0e4
+"""Bound of the barometric pressure altitude, m (MEMS barometers read 300-1100 hPa, about
+-700 to +9200 m in the standard atmosphere)."""
 
 UNIT_EXPONENTS: dict[str, dict[str, int]] = {
     "s": {"s": 1},
@@ -141,7 +148,7 @@ SOLUTION_FIELDS = ("lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "rol
 TRUTH_FIELDS = SOLUTION_FIELDS + ("s",)
 """The truth vector: the solution layout plus the arc length s (m)."""
 
-Group = Literal["time", "imu", "gnss", "odometer", "solution", "truth"]
+Group = Literal["time", "imu", "gnss", "odometer", "baro", "solution", "truth"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,7 +157,7 @@ class Layout:
 
     orders : multiple-integral orders R. samples_per_step : IMU samples m per navigation
     step. channels : GNSS channels k. odometer : the scenario has a wheel odometer.
-    nav_period_s, imu_period_s, duration_s : the time base, s.
+    baro : the scenario has a barometric altimeter. nav_period_s, imu_period_s, duration_s : the time base, s.
     """
 
     orders: int
@@ -160,6 +167,7 @@ class Layout:
     nav_period_s: float
     imu_period_s: float
     duration_s: float
+    baro: bool = False
 
     @classmethod
     def of(cls, scenario: Any, channels: int) -> Layout:
@@ -168,7 +176,7 @@ class Layout:
         return cls(orders=int(scenario.imu.orders), samples_per_step=int(timing.samples_per_step),
                    channels=int(channels), odometer=bool(scenario.odometer.enabled),
                    nav_period_s=float(timing.nav_period_s), imu_period_s=float(timing.imu_period_s),
-                   duration_s=float(timing.duration_s))
+                   duration_s=float(timing.duration_s), baro=bool(scenario.baro.enabled))
 
     @classmethod
     def of_context(cls, context: Context, channels: int, duration_s: float = math.inf) -> Layout:
@@ -177,7 +185,7 @@ class Layout:
         return cls(orders=int(context.orders), samples_per_step=int(context.samples_per_step),
                    channels=int(channels), odometer=context.odometer is not None,
                    nav_period_s=float(context.nav_period_s), imu_period_s=float(context.imu_period_s),
-                   duration_s=float(duration_s))
+                   duration_s=float(duration_s), baro=getattr(context, "baro", None) is not None)
 
 
 def _integral_bounds(bound: float, span: float, orders: int) -> np.ndarray:
@@ -205,7 +213,7 @@ class Signal:
     causality : "output" (leaves the core) or "input" (enters it: what an agent returns).
     observation : part of the Gymnasium observation.
     order_units : per-order units of an (R, 3) multiple-integral signal (r = 1, 2, ...).
-    optional : the layout flag that must be set for the signal to exist ("odometer"), or "".
+    optional : the layout flag that must be set for the signal to exist ("odometer", "baro"), or "".
     """
 
     name: str
@@ -258,6 +266,7 @@ class Signal:
             "sat_pos_e": lambda: np.full(n, MAX_RANGE_M),
             "sat_vel_e": lambda: np.full(n, MAX_SAT_SPEED_MPS),
             "odometer_ds": lambda: np.full(n, MAX_WHEEL_SPEED_MPS * dt),
+            "baro_alt": lambda: np.full(n, MAX_PRESSURE_ALTITUDE_M),
         }.get(name)
         if high is None:
             return np.full(n, -np.inf), np.full(n, np.inf)
@@ -295,6 +304,8 @@ SIGNALS: tuple[Signal, ...] = (
     _sensor("sat_vel_e", "gnss", ("k", 3), "m/s", "ECEF satellite velocity of each channel", "gnss.sat_vel_e"),
     _sensor("odometer_ds", "odometer", (1,), "m", "Wheel-odometer distance counted over the step", "odometer.ds_m",
             optional="odometer"),
+    _sensor("baro_alt", "baro", (1,), "m", "Barometric pressure altitude at the step end (navsim.sensors.baro)",
+            "baro.altitude_m", optional="baro"),
     Signal("solution", "solution", (9,), "",
            "Navigation solution [lat, lon (rad), h (m), vE, vN, vU (m/s), heading, pitch, roll (rad)]", "nav",
            causality="input"),
@@ -313,8 +324,10 @@ SIGNALS: tuple[Signal, ...] = (
 _BY_NAME = {s.name: s for s in SIGNALS}
 
 OBS_KEYS = tuple(s.name for s in SIGNALS if s.observation and not s.optional)
-"""Keys of every observation; :data:`ODOMETER_KEY` is added with an odometer."""
+"""Keys of every observation; :data:`ODOMETER_KEY` is added with an odometer, :data:`BARO_KEY`
+with a barometer."""
 ODOMETER_KEY = "odometer_ds"
+BARO_KEY = "baro_alt"
 
 
 def signal(name: str) -> Signal:
@@ -344,7 +357,7 @@ class ObservationCodec:
     hands out, bit for bit). ``prn`` is the channel order.
     """
 
-    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_odometer", "_terminal")
+    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_odometer", "_baro", "_terminal")
 
     def __init__(self, layout: Layout, prn: np.ndarray) -> None:
         self.layout = layout
@@ -353,6 +366,7 @@ class ObservationCodec:
         self.keys = tuple(s.name for s in self.signals)
         self._dt = float(layout.nav_period_s)
         self._odometer = bool(layout.odometer)
+        self._baro = bool(layout.baro)
         terminal = {s.name: np.zeros(s.size(layout), dtype=s.dtype) for s in self.signals}
         terminal["t"][0] = layout.duration_s
         self._terminal = terminal
@@ -389,6 +403,8 @@ class ObservationCodec:
             rows[key] = _frozen(value.reshape(n, -1))
         if self._odometer:
             rows["odometer_ds"] = _frozen(chunk.odometer.ds_m[:, None])
+        if self._baro:
+            rows["baro_alt"] = _frozen(chunk.baro.altitude_m[:, None])
         return rows
 
     @staticmethod
@@ -405,9 +421,10 @@ class ObservationCodec:
                                    obs["pseudorange_m"], obs["pseudorange_rate_mps"],
                                    np.asarray(obs["gnss_valid"], dtype=bool))
         odometer = obs.get("odometer_ds") if self._odometer else None
+        baro = obs.get("baro_alt") if self._baro else None
         return Measurement(step, t, self._dt, obs["dtheta_r"].reshape(-1, 3), obs["dv_r"].reshape(-1, 3),
                            obs["dtheta_sub"].reshape(-1, 3), obs["dv_sub"].reshape(-1, 3), gnss,
-                           None if odometer is None else float(odometer[0]))
+                           None if odometer is None else float(odometer[0]), None if baro is None else float(baro[0]))
 
     def encode_batch_chunk(self, chunk: Any) -> BatchObservations:
         """The observations of a :class:`navsim.simulator.ChunkBatch` of N lockstep members:
@@ -433,13 +450,15 @@ class ObservationCodec:
                        sat_pos_e=np.ravel(g.sat_pos_e).astype(float), sat_vel_e=np.ravel(g.sat_vel_e).astype(float))
         if self._odometer:
             obs["odometer_ds"] = np.array([0.0 if m.odometer_ds_m is None else m.odometer_ds_m])
+        if self._baro:
+            obs["baro_alt"] = np.array([0.0 if m.baro_alt_m is None else m.baro_alt_m])
         return obs
 
 
 class BatchObservations:
     """Per-step observations of N lockstep members (see :meth:`ObservationCodec.encode_batch_chunk`)."""
 
-    __slots__ = ("_epoch_at", "_t", "_new_epoch", "_imu", "_odometer", "_valid", "_pr", "_prr", "_sat_pos",
+    __slots__ = ("_epoch_at", "_t", "_new_epoch", "_imu", "_odometer", "_baro", "_valid", "_pr", "_prr", "_sat_pos",
                  "_sat_vel", "_no_gnss")
 
     def __init__(self, codec: ObservationCodec, chunk: Any) -> None:
@@ -458,6 +477,7 @@ class BatchObservations:
                      ("dtheta_sub", _frozen(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))),
                      ("dv_sub", _frozen(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))))
         self._odometer = _frozen(chunk.odometer.ds_m.reshape(n_env, c, 1)) if codec.layout.odometer else None
+        self._baro = _frozen(chunk.baro.altitude_m.reshape(n_env, c, 1)) if codec.layout.baro else None
         self._no_gnss = {"gnss_valid": _frozen(np.zeros((n_env, k), dtype=np.int8)),
                          "pseudorange_m": _frozen(np.zeros((n_env, k))),
                          "pseudorange_rate_mps": _frozen(np.zeros((n_env, k))),
@@ -487,4 +507,6 @@ class BatchObservations:
         obs.update(gnss)
         if self._odometer is not None:
             obs["odometer_ds"] = self._odometer[:, i]
+        if self._baro is not None:
+            obs["baro_alt"] = self._baro[:, i]
         return obs

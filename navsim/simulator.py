@@ -9,9 +9,9 @@ Time base
     GNSS epochs fall at the *end* of every ``steps_per_epoch``-th step.
 Random streams
     ``reset(seed)`` makes ``SeedSequence(seed)`` and spawns, in this fixed order, the
-    streams ``motion, imu, gnss, outages, initial_error, odometer`` (:data:`STREAMS`;
-    ``odometer`` was appended last: a spawned child keeps its index, so the earlier
-    streams are the same numbers as before it existed). Each sensor
+    streams ``motion, imu, gnss, outages, initial_error, odometer, baro`` (:data:`STREAMS`;
+    ``odometer`` and then ``baro`` were appended last: a spawned child keeps its index, so the
+    earlier streams are the same numbers as before they existed). Each sensor
     draws a fixed-width block per sample or epoch, so the numbers do not depend on the
     chunk size, and switching one source off changes no other stream.
 IMU truth
@@ -51,6 +51,7 @@ from .motion import (
     true_state,
 )
 from .scenario import Scenario
+from .sensors import baro as baro_mod
 from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import odometer as odometer_mod
@@ -63,7 +64,7 @@ from .validation import check_seed, check_steps, validate_scenario
 __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile",
            "build_imu_model", "build_gnss", "build_gnss_error_model"]
 
-STREAMS = ("motion", "imu", "gnss", "outages", "initial_error", "odometer")
+STREAMS = ("motion", "imu", "gnss", "outages", "initial_error", "odometer", "baro")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
 
 IMU_GROUP = 32
@@ -127,6 +128,9 @@ class Chunk:
     odometer : OdometerOutput or None
         The wheel odometer over each step (``ds_m``, ``pulses``: (n,)), None when the
         scenario has no odometer (:mod:`navsim.sensors.odometer`).
+    baro : BaroOutput or None
+        The barometric altimeter's reading at each step end (``altitude_m``,
+        ``pressure_pa``, ``bias_pa``: (n,)), None without one (:mod:`navsim.sensors.baro`).
     """
 
     step0: int
@@ -137,6 +141,7 @@ class Chunk:
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
     odometer: object | None = None
+    baro: baro_mod.BaroOutput | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -159,6 +164,8 @@ class ChunkBatch:
     receiver_outage : (B, k) bool
     odometer : OdometerOutput or None
         Arrays (B, n); None without an odometer.
+    baro : BaroOutput or None
+        Arrays (B, n); None without a barometer.
     """
 
     step0: int
@@ -169,6 +176,7 @@ class ChunkBatch:
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
     odometer: object | None = None
+    baro: baro_mod.BaroOutput | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -185,8 +193,10 @@ class ChunkBatch:
             **{f: getattr(self.gnss, f)[j] for f in type(self.gnss).__slots__})
         odometer = None if self.odometer is None else type(self.odometer)(
             **{f: getattr(self.odometer, f)[j] for f in type(self.odometer).__slots__})
+        baro = None if self.baro is None else baro_mod.BaroOutput(
+            *(getattr(self.baro, f)[j] for f in baro_mod.BaroOutput.__slots__))
         return Chunk(step0=self.step0, t=self.t, truth=self.truth, imu=imu, gnss=gnss, gnss_step=self.gnss_step,
-                     receiver_outage=self.receiver_outage[j], odometer=odometer)
+                     receiver_outage=self.receiver_outage[j], odometer=odometer, baro=baro)
 
 
 @dataclass(frozen=True, slots=True)
@@ -310,6 +320,7 @@ class Simulator:
         self.constellation, self.gnss_model = build_gnss(scenario, self.earth)
         self.outage_model = scenario.outages
         self.odometer_model = scenario.odometer.model() if scenario.odometer.enabled else None
+        self.baro_model = scenario.baro.model() if scenario.baro.enabled else None
         self.truthgen = TruthGenerator(
             self.track, self.profile, self.oscillations, self.timing.imu_period_s, scenario.imu.orders,
             scenario.imu.quadrature_nodes, t_end=self.timing.duration_s)
@@ -369,6 +380,8 @@ class Simulator:
         if self.odometer_model is not None:
             self.odometer_state = odometer_mod.OdometerState.initial(self.odometer_model, self.rngs["odometer"])
             self._odometer_s = float(truth0.s[0])  # arc length at the end of the last step
+        if self.baro_model is not None:
+            self.baro_state = baro_mod.BaroState.initial(self.baro_model, self.rngs["baro"])
         return Start(truth=truth0, prior=self._draw_prior(truth0))
 
     def _draw_prior(self, truth0: TrueState) -> Prior:
@@ -593,10 +606,17 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
         s_end = float(truth.s[-1])
         for sim, o_state in zip(sims, odo_states):
             sim.odometer_state, sim._odometer_s = o_state, s_end
+    # --- barometric altimeter: the true height at the step ends, errors per member
+    baro = None
+    if lead.baro_model is not None:
+        baro, baro_states = baro_mod.simulate_baro_batch(
+            truth.h, lead.baro_model, [sim.baro_state for sim in sims], [sim.rngs["baro"] for sim in sims], dt=dt)
+        for sim, b_state in zip(sims, baro_states):
+            sim.baro_state = b_state
     for sim in sims:
         sim._step += n
     return ChunkBatch(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
-                      gnss_step=epoch_steps, receiver_outage=receiver_outage, odometer=odometer)
+                      gnss_step=epoch_steps, receiver_outage=receiver_outage, odometer=odometer, baro=baro)
 
 
 class SimulatorBatch:

@@ -5,7 +5,7 @@ module imports nothing of navsim but the Earth model and the track protocol (for
 hints only), so the simulator, the receiver, the estimators, the Gymnasium env and the
 FMUs can all import it without pulling in each other.
 
-* :class:`NominalImu`, :class:`NominalGnss`, :class:`NominalOdometer`: the *nominal*
+* :class:`NominalImu`, :class:`NominalGnss`, :class:`NominalOdometer`, :class:`NominalBaro`: the *nominal*
   (datasheet) sensor specifications an estimator is told, never the simulator's drawn
   errors; :class:`Context` bundles them with the map, the Earth model and the time base.
 * :class:`GnssObservation`, :class:`Measurement`, :class:`MeasurementBatch`: the sensor
@@ -41,6 +41,7 @@ __all__ = [
     "NominalImu",
     "NominalGnss",
     "NominalOdometer",
+    "NominalBaro",
     "Context",
     "GnssObservation",
     "Measurement",
@@ -141,6 +142,24 @@ class NominalOdometer:
     slip_accel_threshold_mps2: float = float("inf")
 
 
+@dataclass(frozen=True, slots=True)
+class NominalBaro:
+    """The barometric-altimeter specification an estimator is told (1-sigma, in metres of
+    pressure altitude near the track's height; :mod:`navsim.sensors.baro`).
+
+    noise_sigma_m : white noise of one reading, m. resolution_m : output resolution, m
+    (the rounding error of a reading has variance ``resolution_m^2 / 12``).
+    bias_sigma_m, bias_tau_s : stationary sigma (m) and correlation time (s) of the
+    first-order Gauss-Markov bias of the pressure altitude. The altimeter reads the
+    height of the IMU.
+    """
+
+    noise_sigma_m: float = 0.0
+    resolution_m: float = 0.0
+    bias_sigma_m: float = 0.0
+    bias_tau_s: float = 600.0
+
+
 @dataclass(frozen=True)
 class Context:
     """Everything an estimator may know before the episode starts.
@@ -155,6 +174,7 @@ class Context:
     imu : NominalImu. gnss : NominalGnss.
     scenario_name : str. config_hash : str, for logs.
     odometer : NominalOdometer or None (no wheel odometer).
+    baro : NominalBaro or None (no barometric altimeter).
     """
 
     track: Track
@@ -169,6 +189,7 @@ class Context:
     scenario_name: str = ""
     config_hash: str = ""
     odometer: NominalOdometer | None = None
+    baro: NominalBaro | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,7 +217,8 @@ class Measurement:
     1.14). dtheta_sub, dv_sub : (m, 3) first-order increments of the m IMU samples in the
     step. gnss : the epoch at the step end, or None when no epoch falls there.
     odometer_ds_m : distance counted by the wheel odometer over the step, m (None: no
-    odometer).
+    odometer). baro_alt_m : pressure altitude read by the barometric altimeter at the
+    step end, m (None: no barometer).
     """
 
     step: int
@@ -208,6 +230,7 @@ class Measurement:
     dv_sub: np.ndarray
     gnss: GnssObservation | None = None
     odometer_ds_m: float | None = None
+    baro_alt_m: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,7 +274,8 @@ class MeasurementBatch:
     Arrays are those of :class:`Measurement` with a leading step axis: step, t (n,);
     dtheta_r, dv_r (n, R, 3); dtheta_sub, dv_sub (n, m, 3). ``gnss`` lists the epochs
     as ``(index_in_batch, GnssObservation)`` pairs, in time order. ``odometer_ds_m``
-    (n,): the odometer distance of each step, m, or None.
+    (n,): the odometer distance of each step, m, or None. ``baro_alt_m`` (n,): the
+    barometer's pressure altitude at each step end, m, or None.
     """
 
     step: np.ndarray
@@ -263,6 +287,7 @@ class MeasurementBatch:
     dv_sub: np.ndarray
     gnss: tuple[tuple[int, GnssObservation], ...]
     odometer_ds_m: np.ndarray | None = None
+    baro_alt_m: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -271,8 +296,9 @@ class MeasurementBatch:
         """The i-th step as a :class:`Measurement`."""
         epoch = next((obs for j, obs in self.gnss if j == i), None)
         odometer = None if self.odometer_ds_m is None else float(self.odometer_ds_m[i])
+        baro = None if self.baro_alt_m is None else float(self.baro_alt_m[i])
         return Measurement(int(self.step[i]), float(self.t[i]), self.dt, self.dtheta_r[i], self.dv_r[i],
-                           self.dtheta_sub[i], self.dv_sub[i], epoch, odometer)
+                           self.dtheta_sub[i], self.dv_sub[i], epoch, odometer, baro)
 
 
 @dataclass(frozen=True, slots=True)

@@ -80,7 +80,7 @@ def test_streams_are_independent():
     t = cat(out, lambda c: c.gnss.t)
     assert not valid[(t >= 2.0) & (t < 5.0)].any() and valid[t < 2.0].any()
     # spawn order: streams added later are appended (a spawned child keeps its index)
-    assert STREAMS == ("motion", "imu", "gnss", "outages", "initial_error", "odometer")
+    assert STREAMS == ("motion", "imu", "gnss", "outages", "initial_error", "odometer", "baro")
 
 
 def test_block_generation_matches_direct_quadrature():

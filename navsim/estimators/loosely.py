@@ -121,6 +121,20 @@ neither the odometer nor the constraint observes, is what is left).
 ``odometer="none"``, or no odometer in the context, is the filter without these terms,
 number for number.
 
+Barometric height aiding (``context.baro``; option ``baro``)
+-----------------------------------------------------------
+With a barometric altimeter the error state gains the error ``db`` of the estimated
+altimeter bias b (a first-order Gauss-Markov state, :class:`AuxStateIns` (AX.1), with
+the nominal stationary sigma and correlation time of :class:`~navsim.types.NominalBaro`).
+Every ``baro_period_s`` (whole navigation steps at global step multiples; default 1 s)
+the pressure altitude z of the step end gives::
+
+    y = h_ins - z + b_est = dU + db - v,      H = [e_U | e_b]                (LC.9)
+
+``R = sigma_n^2 + q^2 / 12`` (white noise and rounding of one reading; the altimeter
+reads the height of the IMU). ``baro="none"``, or no barometer in the context, is the
+filter without these terms, number for number.
+
 Process noise: :meth:`ImuNoise.from_nominal` (ARW, VRW, Gauss-Markov biases with the
 nominal sigma and correlation time, rate random walk). Update in Joseph form, covariance
 symmetrised and guarded; a divergence becomes ``extra["diverged"]`` (and the attribute
@@ -300,6 +314,11 @@ class LooselyCoupledEkf(NoiseScalable):
         filter of before, number for number.
     fix_error_tau_s : (2,) float
         Correlation times of the horizontal and vertical fix-error states, s.
+    baro : {"auto", "none"}
+        "auto": with a barometer in the context, the height update (LC.9) with a
+        Gauss-Markov altimeter-bias state; "none": the filter without it, number for number.
+    baro_period_s : float
+        Interval of the barometer updates, s (rounded to whole navigation steps).
 
     Attributes
     ----------
@@ -316,7 +335,15 @@ class LooselyCoupledEkf(NoiseScalable):
                  sculling: str | None = None, position: str | None = None, lever_arm: str = "auto",
                  odometer: str = "auto", odometer_period_s: float = 1.0, nhc: bool = True,
                  nhc_sigma_mps: float = 0.05, fix_error: str = "auto",
-                 fix_error_tau_s: tuple[float, float] = (1200.0, 7200.0)) -> None:
+                 fix_error_tau_s: tuple[float, float] = (1200.0, 7200.0), baro: str = "auto",
+                 baro_period_s: float = 1.0) -> None:
+        if baro not in ("auto", "none"):
+            raise ConfigError("baro", "'auto' or 'none'", baro)
+        if isinstance(baro_period_s, bool) or not (isinstance(baro_period_s, (int, float)) and baro_period_s > 0.0
+                                                   and math.isfinite(baro_period_s)):
+            raise ConfigError("baro_period_s", "a positive finite number", baro_period_s)
+        self.baro = baro
+        self.baro_period_s = float(baro_period_s)
         if fix_error not in ("auto", "white"):
             raise ConfigError("fix_error", "'auto' or 'white'", fix_error)
         tau = tuple(fix_error_tau_s)
@@ -388,12 +415,24 @@ class LooselyCoupledEkf(NoiseScalable):
             aux_var.extend(sigma**2)
             aux_psd.extend(2.0 * sigma**2 / tau_fix)
             aux_tau.extend(tau_fix)
+        baro_spec = getattr(context, "baro", None)
+        self._baro = baro_spec if self.baro == "auto" else None
+        self._baro_index = None
+        if self._baro is not None:  # (LC.9) the Gauss-Markov altimeter bias
+            self._baro_index = len(aux_var)
+            aux_var.append(baro_spec.bias_sigma_m**2)
+            aux_psd.append(2.0 * baro_spec.bias_sigma_m**2 / baro_spec.bias_tau_s)
+            aux_tau.append(baro_spec.bias_tau_s)
+            self._baro_steps = max(1, round(self.baro_period_s / context.nav_period_s))
+            self._baro_var = max(baro_spec.noise_sigma_m**2 + baro_spec.resolution_m**2 / 12.0, 1e-12)
+            self.baro_nis = math.nan
         if not aux_var:
             self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
         else:
             self.engine = AuxStateIns(context, prior, noise, interval_steps=steps, **self.methods,
                                       aux_variance=aux_var, aux_psd=aux_psd,
-                                      aux_tau_s=aux_tau if self._atmosphere is not None else None)
+                                      aux_tau_s=aux_tau if self._atmosphere is not None or self._baro is not None
+                                      else None)
         if self._odo is not None:
             self._odo_steps = max(1, round(self.odometer_period_s / context.nav_period_s))
             self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
@@ -421,7 +460,9 @@ class LooselyCoupledEkf(NoiseScalable):
         if eng is None:
             raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
         odo = getattr(m, "odometer_ds_m", None)
-        if m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0):
+        baro = getattr(m, "baro_alt_m", None)
+        if m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0) \
+                and (self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
             rows, cov = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
             if self._odo is not None:
                 self._odometer_accumulate(rows, None if odo is None else (odo,), 0, 1)
@@ -433,12 +474,15 @@ class LooselyCoupledEkf(NoiseScalable):
             if self._odo is not None:
                 extra["odometer_scale"] = float(eng.aux[0])
                 extra["odometer_nis"] = self.odometer_nis
+            if self._baro is not None:
+                extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
             return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov[0],
                             extra=extra)
         gnss = ((0, m.gnss),) if m.gnss is not None else ()
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
-            m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo])))
+            m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo]),
+            None if baro is None else np.array([baro])))
         row = out.solution[0]
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
         if self._fix_index is not None:
@@ -446,6 +490,9 @@ class LooselyCoupledEkf(NoiseScalable):
         if self._odo is not None:
             extra["odometer_scale"] = float(eng.aux[0])
             extra["odometer_nis"] = self.odometer_nis
+        if self._baro is not None:
+            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
+            extra["baro_nis"] = self.baro_nis
         if m.gnss is not None:
             extra["n_valid"] = self.last_update.get("n_valid", 0)
         nis = None if math.isnan(out.nis[0]) else float(out.nis[0])
@@ -476,6 +523,11 @@ class LooselyCoupledEkf(NoiseScalable):
             odo_due = set(np.flatnonzero((steps + 1) % self._odo_steps == 0).tolist())
             odo_ds = getattr(batch, "odometer_ds_m", None)
             events.update({i: None for i in odo_due if i not in events})
+        baro_due = ()
+        baro_alt = getattr(batch, "baro_alt_m", None)
+        if self._baro is not None and baro_alt is not None:
+            baro_due = set(np.flatnonzero((np.asarray(batch.step) + 1) % self._baro_steps == 0).tolist())
+            events.update({i: None for i in baro_due if i not in events})
         start = 0
         for index in sorted(events):
             e = events[index]
@@ -495,6 +547,13 @@ class LooselyCoupledEkf(NoiseScalable):
                 value, dof = self._odometer_update()
                 if dof:
                     if nis_dof[index]:  # sequential updates in one step: the NIS add up
+                        nis[index], nis_dof[index] = nis[index] + value, nis_dof[index] + dof
+                    else:
+                        nis[index], nis_dof[index] = value, dof
+            if index in baro_due:
+                value, dof = self._baro_update(float(baro_alt[index]))
+                if dof:
+                    if nis_dof[index]:
                         nis[index], nis_dof[index] = nis[index] + value, nis_dof[index] + dof
                     else:
                         nis[index], nis_dof[index] = value, dof
@@ -545,12 +604,7 @@ class LooselyCoupledEkf(NoiseScalable):
             H = np.concatenate([H, np.zeros((len(y), eng.n_states - N_STATES))], axis=1)
             H[0, i], H[1, i + 1], H[2, i + 2] = 1.0, 1.0, 1.0
         value, dx = eng.update(H, 0.5 * (R + R.T), y)
-        if self._odo is not None and self._odo_n:
-            # the INS rows already summed for the odometer carry the error just removed:
-            # remove it from them too (first order, as if constant over the interval)
-            st = eng.state
-            self._odo_vb = self._odo_vb - self._odo_n * (
-                body_velocity_terms(quat_to_mat(st.quat_nb), st.velocity_n)[1] @ dx[:N_STATES])
+        self._odometer_correct(dx)
         if not math.isfinite(value) or value > self._nis_limit:
             self._failed += 1
         else:
@@ -558,6 +612,29 @@ class LooselyCoupledEkf(NoiseScalable):
         if self._failed >= self.divergence_epochs:
             self.diverged = True
         return value, len(y)
+
+    def _odometer_correct(self, dx: np.ndarray) -> None:
+        """The INS rows already summed for the odometer carry the error an update just
+        removed: remove it from them too (first order, as if constant over the interval)."""
+        if self._odo is not None and self._odo_n:
+            st = self.engine.state
+            self._odo_vb = self._odo_vb - self._odo_n * (
+                body_velocity_terms(quat_to_mat(st.quat_nb), st.velocity_n)[1] @ dx[:N_STATES])
+
+    def _baro_update(self, altitude_m: float) -> tuple[float, int]:
+        """(LC.9) at the current step with the pressure altitude ``altitude_m``; (nis, dof)."""
+        eng = self.engine
+        i = self._baro_index
+        if not math.isfinite(altitude_m):
+            self.baro_nis = math.nan
+            return math.nan, 0
+        H = np.zeros((1, eng.n_states))
+        H[0, 2], H[0, N_STATES + i] = 1.0, 1.0
+        y = np.array([eng.state.h - altitude_m + eng.aux_now()[i]])
+        value, dx = eng.update(H, np.array([[self._baro_var]]), y)
+        self._odometer_correct(dx)
+        self.baro_nis = value
+        return value, 1
 
     # ------------------------------------------------------------------------ odometer
     def _odometer_accumulate(self, rows, odo_ds, start: int, stop: int) -> None:

@@ -135,6 +135,18 @@ assembled only at updates); the atmospheric states join the clock in that auxili
 block (TC.5 acts on neither the INS nor the clock). The strapdown body terms are computed once per batch and the
 INS runs over all the steps between epochs in one sequential pass in ``step_batch``.
 
+Barometric height aiding (``context.baro``; option ``baro="auto"``, EKF only): one more
+state after the others, the error db (estimate minus truth) of the altimeter bias b, a
+first-order Gauss-Markov process with the nominal sigma and correlation time
+(:class:`~navsim.types.NominalBaro`; Phi = exp(-t/tau), Qd = sigma^2 (1 - exp(-2t/tau)),
+its estimate decaying with Phi between updates). Every ``baro_period_s`` (default 1 s,
+whole navigation steps at global step multiples) the pressure altitude z gives::
+
+    y = h_ins - z + b_est = dU + db - v,   H = [e_U | e_b],   R = sigma_n^2 + q^2 / 12   (TC.10)
+
+``baro="none"``, no barometer in the context, or the UKF: the filter without it, number
+for number.
+
 Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, one core of the development
 machine): EKF ~35 us per step, UKF ~37 us per step, i.e. ~3.5-3.7 s for the 1000-s
 episode (38-42 us on the loaded shared machine, where the INS alone took 26 us), of
@@ -553,7 +565,8 @@ def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _ClockEngine(AuxBlocksIns):
-    """The INS error engine plus auxiliary states: receiver clock (2) and atmosphere (2).
+    """The INS error engine plus auxiliary states: receiver clock (2), atmosphere (2) and
+    barometric-altimeter bias (1).
 
     The clock dynamics (TC.1) and the atmospheric Gauss-Markov processes (TC.5) do not
     involve the INS errors and vice versa: the interval bookkeeping of the auxiliary
@@ -562,14 +575,18 @@ class _ClockEngine(AuxBlocksIns):
 
     ``atmosphere`` is None (no atmospheric states) or ``(apriori, sigma, tau)``, each
     (ionosphere, troposphere): a-priori zenith delays (m), their 1-sigma (m) and the
-    Gauss-Markov time constants (s, ``inf`` for random constants).
+    Gauss-Markov time constants (s, ``inf`` for random constants). ``baro`` is None or
+    ``(sigma_m, tau_s)`` of the Gauss-Markov altimeter bias (TC.10), its state last.
     """
 
     def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool,
-                 atmosphere=None, **kw):
+                 atmosphere=None, baro=None, **kw):
         self.with_clock = bool(with_clock)
         self.with_atmosphere = atmosphere is not None
+        self.with_baro = baro is not None
         self.atm_index = 15 + (2 if self.with_clock else 0)
+        self.baro_index = self.atm_index + (2 if self.with_atmosphere else 0)
+        self.baro_bias = 0.0  # estimated altimeter bias, m
         self.clock = np.zeros(2)
         self._clock_psd = clock_psd
         variances = [clock_sigma[0] ** 2, clock_sigma[1] ** 2] if self.with_clock else []
@@ -580,12 +597,17 @@ class _ClockEngine(AuxBlocksIns):
             self._atm_var = sigma**2
             self._atm_tau = tau
             variances += list(self._atm_var)
+        if self.with_baro:
+            self._baro_var, self._baro_tau = float(baro[0]) ** 2, float(baro[1])
+            variances.append(self._baro_var)
         self._init_aux(variances)
         self._mark_update()
         super().__init__(context, prior, noise, **kw)
 
     def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
-        """Phi_a and Qd_a of the auxiliary states over tau: (TC.1), (TC.5)."""
+        """Phi_a and Qd_a of the auxiliary states over tau: (TC.1), (TC.5), (TC.10)."""
+        if self.with_baro:
+            return self._baro_transition(tau)
         if not self.with_atmosphere:
             return _clock_transition(tau, self._clock_psd)
         decay = np.exp(-tau / self._atm_tau)  # (TC.5), 1 for a random constant
@@ -598,12 +620,30 @@ class _ClockEngine(AuxBlocksIns):
         q[a, a], q[a + 1, a + 1] = self._atm_var * (1.0 - decay * decay)
         return phi, q
 
+    def _baro_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
+        """(TC.1), (TC.5) and the altimeter bias (TC.10) as one block-diagonal transition."""
+        phi = np.zeros((self.n_aux, self.n_aux))
+        q = np.zeros((self.n_aux, self.n_aux))
+        if self.with_clock:
+            phi[:2, :2], q[:2, :2] = _clock_transition(tau, self._clock_psd)
+        if self.with_atmosphere:
+            a = self.atm_index - 15
+            decay = np.exp(-tau / self._atm_tau)
+            phi[a, a], phi[a + 1, a + 1] = decay
+            q[a, a], q[a + 1, a + 1] = self._atm_var * (1.0 - decay * decay)
+        b = self.baro_index - 15
+        decay_b = math.exp(-tau / self._baro_tau)
+        phi[b, b], q[b, b] = decay_b, self._baro_var * -math.expm1(-2.0 * tau / self._baro_tau)
+        return phi, q
+
     def _mark_update(self) -> None:
-        """Remember the clock and atmosphere estimates at an update (or the reset)."""
+        """Remember the clock, atmosphere and altimeter-bias estimates at an update (or the reset)."""
         self._since_update = 0
         self._clock_at_update = self.clock.copy()
         if self.with_atmosphere:
             self._atm_at_update = self.atm.copy()
+        if self.with_baro:
+            self._baro_at_update = self.baro_bias
 
     def advance_body(self, body, start: int = 0, stop: int | None = None):
         """The INS steps, then the clock (TC.1) and atmosphere (TC.5) means.
@@ -626,6 +666,8 @@ class _ClockEngine(AuxBlocksIns):
             self.clock = np.array([c0[0] + c0[1] * tau, c0[1]])
         if self.with_atmosphere:  # (TC.5) mean: the residual decays towards the a-priori value
             self.atm = self.atm_apriori + (self._atm_at_update - self.atm_apriori) * np.exp(-tau / self._atm_tau)
+        if self.with_baro:  # (TC.10) mean: the bias estimate decays towards zero
+            self.baro_bias = self._baro_at_update * math.exp(-tau / self._baro_tau)
 
     def apply(self, dx: np.ndarray, P_new: np.ndarray) -> None:
         """Closed-loop feedback of an estimated error dx and restart of the interval."""
@@ -637,6 +679,8 @@ class _ClockEngine(AuxBlocksIns):
             if self.with_atmosphere:
                 a = self.atm_index
                 self.atm = self.atm - dx[a:a + 2]
+            if self.with_baro:
+                self.baro_bias = self.baro_bias - float(dx[self.baro_index])
             self._mark_update()
             self._restart_after_update(P_new)
         else:
@@ -668,8 +712,16 @@ class TightlyCoupledOptions:
     ionosphere_tau_s: float = 1800.0
     troposphere_tau_s: float = 3600.0
     lever_arm: str = "auto"
+    baro: str = "auto"
+    baro_period_s: float = 1.0
 
     def __post_init__(self):
+        if self.baro not in ("auto", "none"):
+            raise ConfigError("tightly.baro", "'auto' or 'none'", self.baro)
+        if isinstance(self.baro_period_s, bool) or not (isinstance(self.baro_period_s, (int, float))
+                                                        and self.baro_period_s > 0.0
+                                                        and math.isfinite(self.baro_period_s)):
+            raise ConfigError("tightly.baro_period_s", "a positive finite number, s", self.baro_period_s)
         if self.lever_arm not in ("auto", "none"):
             raise ConfigError("tightly.lever_arm", "'auto' or 'none'", self.lever_arm)
         if self.atmosphere not in ("auto", "none"):
@@ -726,8 +778,17 @@ class _TightlyCoupled(NoiseScalable):
                           (opt.ionosphere_tau_s, opt.troposphere_tau_s))
             self._shell_height_m = float(gnss.ionosphere_shell_height_m)
             self._scale_height_m = float(gnss.troposphere_scale_height_m)
+        spec = getattr(context, "baro", None)
+        # (TC.10): the EKF only (the UKF's sigma points do not carry the altimeter state)
+        self._baro = spec if opt.baro == "auto" and self.kind == "ekf" else None
+        baro = None
+        if self._baro is not None:
+            baro = (spec.bias_sigma_m, spec.bias_tau_s)
+            self._baro_steps = max(1, round(opt.baro_period_s / context.nav_period_s))
+            self._baro_var = max(spec.noise_sigma_m**2 + spec.resolution_m**2 / 12.0, 1e-12)
         self.engine = _ClockEngine(context, prior, noise, clock_sigma=clock_sigma, clock_psd=clock_psd,
-                                   with_clock=opt.clock == "auto", atmosphere=atmosphere, interval_steps=steps,
+                                   with_clock=opt.clock == "auto", atmosphere=atmosphere, baro=baro,
+                                   interval_steps=steps,
                                    coning=opt.coning, sculling=opt.sculling, position=opt.position,
                                    estimate_biases=opt.estimate_biases)
         self.earth = context.earth
@@ -834,14 +895,38 @@ class _TightlyCoupled(NoiseScalable):
             extra["clock_bias_m"], extra["clock_drift_mps"] = float(eng.clock[0]), float(eng.clock[1])
         if eng.with_atmosphere:
             extra["ionosphere_zenith_m"], extra["troposphere_zenith_m"] = float(eng.atm[0]), float(eng.atm[1])
+        if eng.with_baro:
+            extra["baro_bias_m"] = float(eng.baro_bias)
         return extra
+
+    def _baro_update(self, altitude_m: float) -> tuple[float | None, int]:
+        """(TC.10) at the current step: ``y = h_ins - z + b_est = dU + db - v``, ``H = [e_U | e_b]``."""
+        eng = self.engine
+        if not math.isfinite(altitude_m):
+            return None, 0
+        P = eng.full_covariance()
+        H = np.zeros((1, eng.n_states))
+        H[0, 2], H[0, eng.baro_index] = 1.0, 1.0
+        y = np.array([eng.state.h - altitude_m + eng.baro_bias])
+        try:
+            dx, P_new, nis = joseph_update(P, H, np.array([[self._baro_var]]), y)
+        except np.linalg.LinAlgError:
+            self.diverged = True
+            return None, 0
+        if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new))):
+            self.diverged = True
+            return None, 0
+        eng.apply(dx, P_new)
+        return float(nis), 1
 
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step (an update when the step carries a GNSS epoch): the batch path
         on a batch of one at epochs, the engine's one-step INS path in between (the same
         operations, see :meth:`ErrorStateIns.advance_body`)."""
         m = measurement
-        if m.gnss is None and self.engine is not None:
+        baro = getattr(m, "baro_alt_m", None)
+        if m.gnss is None and self.engine is not None and (
+                self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
             rows, c = self.engine.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
             self.last_extra = self._extra()
             lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
@@ -849,7 +934,8 @@ class _TightlyCoupled(NoiseScalable):
                             extra=self.last_extra)
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
-            np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else ()))
+            np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else (),
+            baro_alt_m=None if baro is None else np.array([baro])))
         row = out.solution[0]
         nis = None if np.isnan(out.nis[0]) else float(out.nis[0])
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
@@ -867,6 +953,11 @@ class _TightlyCoupled(NoiseScalable):
         dof = np.zeros(n, dtype=int)
         cuts = [j for j, _ in batch.gnss]
         obs_at = dict(batch.gnss)
+        baro_due: set[int] = set()
+        baro_alt = getattr(batch, "baro_alt_m", None)
+        if self._baro is not None and baro_alt is not None:  # (TC.10) update steps
+            baro_due = set(np.flatnonzero((np.asarray(batch.step) + 1) % self._baro_steps == 0).tolist())
+            cuts = sorted(set(cuts) | baro_due)
         start = 0
         body = self.engine.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)  # once per batch
         for end in cuts + ([n - 1] if not cuts or cuts[-1] != n - 1 else []):
@@ -881,6 +972,12 @@ class _TightlyCoupled(NoiseScalable):
                 value, d = self._update(obs)
                 if value is not None:
                     nis[end], dof[end] = value, d
+                    sol[end] = self.engine.current_row()
+                    cov[end] = self.engine.covariance[:9, :9]
+            if end in baro_due:
+                value, d = self._baro_update(float(baro_alt[end]))
+                if value is not None:
+                    nis[end], dof[end] = (nis[end] + value, dof[end] + d) if dof[end] else (value, d)
                     sol[end] = self.engine.current_row()
                     cov[end] = self.engine.covariance[:9, :9]
             start = end + 1
@@ -922,6 +1019,11 @@ class TightlyCoupledEkf(_TightlyCoupled):
         "auto": the observables are the antenna's, at ``context.gnss.lever_arm_b_m``
         from the IMU (TC.8)-(TC.9); "none": the antenna is taken to be at the IMU
         (uncompensated).
+    baro : {"auto", "none"}
+        "auto": with a barometer in the context, the height update (TC.10) with an
+        altimeter-bias state (EKF only); "none": without it.
+    baro_period_s : float
+        Interval of the barometer updates, s (default 1).
 
     See the module docstring for the model and equations.
     """
@@ -932,6 +1034,8 @@ class TightlyCoupledEkf(_TightlyCoupled):
 
     def _kalman(self, P, sat_pos, sat_vel, z, R, m):
         h, J = self.observation_model(sat_pos, sat_vel)
+        if J.shape[1] < P.shape[0]:  # the altimeter-bias column (TC.10): no GNSS partial
+            J = np.concatenate([J, np.zeros((J.shape[0], P.shape[0] - J.shape[1]))], axis=1)
         # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
         return self.kalman_update(P, -J, np.diag(R), z - h)
 
