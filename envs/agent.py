@@ -76,9 +76,13 @@ class EstimatorAgent:
 
     Examples
     --------
-    >>> agent = EstimatorAgent("ins-only")                      # doctest: +SKIP
+    >>> import gymnasium as gym, navsim
+    >>> env = gym.make("navsim/PaperRail-v0", timing={"duration_s": 1.0})
+    >>> agent = EstimatorAgent("ins-only")
     >>> obs, info = env.reset(seed=0); agent.reset(info)
     >>> obs, reward, terminated, truncated, info = env.step(agent.act(obs))
+    >>> terminated or truncated
+    False
     """
 
     def __init__(self, estimator: Any, name: str | None = None, **options: Any) -> None:

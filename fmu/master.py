@@ -11,10 +11,13 @@ the truth of the step it refers to (``nav.t_s``), which
 
 Examples
 --------
+Not run by the doctests (it compiles the FMUs' C guard and writes them to the current folder;
+``tests/fmu`` runs the same calls):
+
 >>> from navsim.fmu import build_fmu, cosimulate          # doctest: +SKIP
->>> build_fmu("paper-2012", "plant", 2, "plant.fmu")
->>> build_fmu("paper-2012", "estimator", 2, "est.fmu", estimator="lc-ekf")
->>> record = cosimulate("plant.fmu", "est.fmu", seed=0)
+>>> build_fmu("paper-2012", "plant", 2, "plant.fmu")      # doctest: +SKIP
+>>> build_fmu("paper-2012", "estimator", 2, "est.fmu", estimator="lc-ekf")  # doctest: +SKIP
+>>> record = cosimulate("plant.fmu", "est.fmu", seed=0)   # doctest: +SKIP
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ IMU truth
 
 Examples
 --------
->>> from navsim import Simulator, load_scenario
+>>> from navsim.scenario import load_scenario
 >>> sim = Simulator(load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}}))
 >>> start = sim.reset(seed=0)
 >>> chunk = sim.advance(100)
@@ -645,7 +645,7 @@ class SimulatorBatch:
 
     Examples
     --------
-    >>> from navsim import load_scenario
+    >>> from navsim.scenario import load_scenario
     >>> from navsim.simulator import SimulatorBatch
     >>> batch = SimulatorBatch(load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}}), 3)
     >>> starts = batch.reset([0, 1, 2])

@@ -129,7 +129,7 @@ def pressure_at(h: ArrayLike) -> NDArray[np.float64]:
     >>> round(float(pressure_at(0.0)), 6)
     101325.0
     >>> round(float(pressure_at(1000.0)), 1)
-    89874.6
+    89874.8
     """
     h = np.asarray(h, dtype=float)
     return P0_PA * (1.0 - LAPSE_K_PER_M * h / T0_K) ** _EXPONENT
