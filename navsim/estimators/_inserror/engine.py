@@ -110,13 +110,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from ..errors import ConfigError
-from ..rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_to_mat
-from ..strapdown import compiled as _compiled
-from ..strapdown import ins as _ins
-from ..strapdown import onestep as _one
-from ..strapdown.ins import InsState
-from .base import NominalImu
+from ...errors import ConfigError
+from ...rotations import mat_nb_from_hpr, mat_to_quat, quat_from_rotvec, quat_to_mat
+from ...strapdown import compiled as _compiled
+from ...strapdown import ins as _ins
+from ...strapdown import onestep as _one
+from ...strapdown.ins import InsState
+from ..base import NominalImu
 
 __all__ = [
     "N_STATES",
