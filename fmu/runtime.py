@@ -550,6 +550,8 @@ class PlantRuntime(_RuntimeBase):
         if self.dims.odometer:
             self.store.write("odometer.ds_m", 0.0)
             self.store.write("odometer.pulses", 0)
+        if self.dims.baro:
+            self.store.write("baro.altitude_m", 0.0)
 
     def _write_steps(self, served) -> None:
         from navsim.sensors.imu import compose_multiple_integrals
@@ -567,6 +569,8 @@ class PlantRuntime(_RuntimeBase):
         if self.dims.odometer:  # distances and pulse counts of consecutive steps add exactly
             self.store.write("odometer.ds_m", math.fsum(float(c.odometer.ds_m[j]) for c, j in served))
             self.store.write("odometer.pulses", int(sum(int(c.odometer.pulses[j]) for c, j in served)))
+        if self.dims.baro:  # the reading at the end of the interval
+            self.store.write("baro.altitude_m", float(chunk.baro.altitude_m[i]))
         self._write_truth(chunk.truth, i)
         self.store.write("time.t_s", float(chunk.t[i]))
         self.store.write("time.step", chunk.step0 + i + 1)
@@ -788,7 +792,8 @@ class EstimatorRuntime(_RuntimeBase):
             dtheta_sub, dv_sub = dtheta_r[:1], dv_r[:1]
         return Measurement(
             step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=dtheta_r, dv_r=dv_r, dtheta_sub=dtheta_sub, dv_sub=dv_sub,
-            gnss=gnss, odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None)
+            gnss=gnss, odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None,
+            baro_alt_m=float(read("baro.altitude_m")) if self.dims.baro else None)
 
     def _write_estimate(self, est, t_s: float) -> None:
         w = self.store.write

@@ -17,6 +17,7 @@ Groups (``Var.group``)
     ``imu``        IMU increments and multiple integrals of the last navigation step(s)
     ``gnss``       per-channel GNSS arrays with a validity mask and a new-epoch flag
     ``odometer``   wheel-odometer distance and pulses (only with an odometer)
+    ``baro``       barometric pressure altitude (only with a barometer)
     ``time``       time stamps and counters
     ``truth``      the true state (plant only; never an estimator input)
     ``prior``      the estimator's initial estimate drawn by the simulator
@@ -132,26 +133,29 @@ class Dimensions:
     orders : multiple-integral orders R of the IMU output.
     samples_per_step : IMU samples m per navigation step.
     odometer : the scenario has a wheel odometer (``[odometer] enabled``).
+    baro : the scenario has a barometric altimeter (``[baro] enabled``).
     """
 
     channels: int
     orders: int
     samples_per_step: int
     odometer: bool = False
+    baro: bool = False
 
     @classmethod
     def of_scenario(cls, scenario, channels: int) -> "Dimensions":
         """The dimensions of a :class:`navsim.scenario.Scenario` whose constellation has
         ``channels`` satellites (no simulator built)."""
         return cls(channels=int(channels), orders=int(scenario.imu.orders),
-                   samples_per_step=int(scenario.timing.samples_per_step), odometer=bool(scenario.odometer.enabled))
+                   samples_per_step=int(scenario.timing.samples_per_step), odometer=bool(scenario.odometer.enabled),
+                   baro=bool(scenario.baro.enabled))
 
     @classmethod
     def of(cls, simulator) -> "Dimensions":
         """The dimensions of a built :class:`navsim.simulator.Simulator`."""
         return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),
                    samples_per_step=int(simulator.timing.samples_per_step),
-                   odometer=bool(simulator.scenario.odometer.enabled))
+                   odometer=bool(simulator.scenario.odometer.enabled), baro=bool(simulator.scenario.baro.enabled))
 
 
 def size(shape: tuple[int, ...]) -> int:
@@ -277,6 +281,17 @@ def _gnss_vars(dims: Dimensions, causality: str) -> list[Var]:
         Var("gnss.sat_vel_e", "real", causality, var, "m/s",
             "ECEF satellite velocity of each channel", s(0.0), (n, 3), "gnss", low=-1e4, high=1e4),
     ]
+
+
+def _baro_vars(dims: Dimensions, causality: str) -> list[Var]:
+    if not dims.baro:
+        return []
+    from navsim.signals import BARO_KEY, MAX_PRESSURE_ALTITUDE_M, signal
+
+    sig = signal(BARO_KEY)  # name, unit and description from the signal table
+    return [Var(sig.fmu_name, "real", causality, "discrete", sig.unit,
+                sig.description + " (the reading at the end of the last interval)",
+                0.0 if causality == "input" else None, (), "baro", -MAX_PRESSURE_ALTITUDE_M, MAX_PRESSURE_ALTITUDE_M)]
 
 
 def _odometer_vars(dims: Dimensions, causality: str) -> list[Var]:
@@ -405,7 +420,7 @@ def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]
     """
     defaults = defaults or {}
     return (_info_vars() + _plant_parameters(defaults) + _motion_inputs(defaults) + _time_vars("plant")
-            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _odometer_vars(dims, "output")
+            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _odometer_vars(dims, "output") + _baro_vars(dims, "output")
             + _truth_vars() + _prior_vars("output"))
 
 
@@ -422,7 +437,7 @@ def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[
             defaults.get("estimator.options", ""), (), "parameter"),
     ]
     return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input")
-            + _odometer_vars(dims, "input") + _prior_vars("input")
+            + _odometer_vars(dims, "input") + _baro_vars(dims, "input") + _prior_vars("input")
             + _time_vars("estimator") + _estimate_time_vars() + _solution_vars() + _uncertainty_vars())
 
 
