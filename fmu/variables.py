@@ -1,9 +1,15 @@
 """The one table of navsim's exchanged variables: names, units, descriptions, start values.
 
-The FMU face (model variables of the plant and estimator FMUs) and the Gymnasium face
-(observation and action spaces) describe the same signals. Both read them from here, so
-a name, unit or description is written once. This module is plain Python: it imports
-neither gymnasium nor pythonfmu nor numpy.
+The sensor variables of both FMUs (the plant's outputs, the estimator's inputs: IMU
+increments and multiple integrals, GNSS channels, odometer, and ``time.t_s``) are
+generated from the signal table :data:`navsim.signals.SIGNALS` (name, unit, shape,
+type, description of each signal declared once), so a sensor signal declared there
+appears in both FMUs. This module adds only what is FMI-specific: the variable
+causality, variability and start values, the FMU-only variables beside the signals
+(info, parameters, motion inputs, the step counters, ``gnss.t_s`` / ``receiver_outage`` /
+``n_valid`` / ``prn``, ``odometer.pulses``), the solution, prior and truth split into
+named scalars with their units, and the FMI unit definitions. It imports neither
+gymnasium nor pythonfmu.
 
 A :class:`Var` is one signal, scalar or array (``shape``). The FMI 3 FMUs export arrays
 as FMI 3 arrays; the FMI 2 FMUs, which have scalars only, export each element as a
@@ -37,6 +43,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from navsim.signals import SIGNALS, Signal, signal
+
 __all__ = [
     "Var",
     "Dimensions",
@@ -66,9 +74,6 @@ UNITS: dict[str, dict[str, int]] = {
     "rad.s3": {"rad": 1, "s": 3},
     "N": {"kg": 1, "m": 1, "s": -2},
 }
-
-_DTHETA_UNITS = ("rad", "rad.s", "rad.s2", "rad.s3", "rad.s3", "rad.s3")
-_DV_UNITS = ("m/s", "m", "m.s", "m.s2", "m.s2", "m.s2")
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,18 +194,94 @@ def _info_vars() -> list[Var]:
     ]
 
 
-def _time_vars(kind: str) -> list[Var]:
+_FMI_TYPES = {"float64": "real", "int8": "bool", "int64": "int"}
+
+
+def _zero(type_: str):
+    return {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+_TIME_NOTE = {"plant": " served (holds between steps)",
+              "estimator": ": the plant's time.t_s, end time of the plant's latest navigation step"}
+
+
+def _signal_shape(sig: Signal, dims: Dimensions) -> tuple[int, ...]:
+    """The FMU shape of a signal: its dimensions with R, m, k resolved; (1,) is a scalar."""
+    sizes = {"R": dims.orders, "m": dims.samples_per_step, "k": dims.channels}
+    shape = tuple(sizes[d] if isinstance(d, str) else d for d in sig.shape)
+    return () if shape == (1,) else shape
+
+
+def _signal_vars(sig: Signal, dims: Dimensions, causality: str, description: str = "") -> list[Var]:
+    """The FMU variables of one signal of :data:`navsim.signals.SIGNALS`: its FMU name,
+    type, unit, shape and description. Multiple-integral signals (``order_units``) become
+    one (3,) variable per order r, named ``{fmu_name}{r}`` with the unit of that order.
+    FMI specifics: inputs start at zero (outputs have no start value); IMU inputs are
+    ``continuous``, everything else ``discrete``."""
+    type_ = _FMI_TYPES[sig.dtype]
+    start = _zero(type_) if causality == "input" else None
+    variability = "continuous" if causality == "input" and sig.group == "imu" else "discrete"
+    text = description or sig.description
+    if sig.order_units:
+        return [Var(f"{sig.fmu_name}{r}", type_, causality, variability, sig.order_units[r - 1],
+                    f"Order r = {r} of {sig.name}: {text}", start, (3,), sig.group) for r in range(1, dims.orders + 1)]
+    return [Var(sig.fmu_name, type_, causality, variability, sig.unit, text, start, _signal_shape(sig, dims),
+                sig.group)]
+
+
+def _gnss_extras(dims: Dimensions, causality: str) -> list[Var]:
+    """FMU-only GNSS variables beside the observation's: the epoch's time, the receiver
+    outage flag, the count of valid channels and the channel order."""
+    start = causality == "input"
+    n = dims.channels
+
+    def v(name, type_, unit, text, shape=(), low=None, high=None):
+        return Var(name, type_, causality, "discrete", unit, text, _zero(type_) if start else None, shape, "gnss",
+                   low, high)
+
+    return [
+        v("gnss.t_s", "real", "s", "Time of the latest GNSS epoch"),
+        v("gnss.receiver_outage", "bool", "", "True when the whole receiver was in an outage at the latest epoch"),
+        v("gnss.n_valid", "int", "", "Valid channels at the latest epoch", low=0, high=n),
+        v("gnss.prn", "int", "", "Satellite number of each channel", (n,), low=0, high=255),
+    ]
+
+
+def _odometer_extras(dims: Dimensions, causality: str) -> list[Var]:
+    """FMU-only odometer variable: the pulse count behind ``odometer.ds_m``."""
+    return [Var("odometer.pulses", "int", causality, "discrete", "",
+                "Wheel-encoder pulses counted over the same steps", 0 if causality == "input" else None, (),
+                "odometer")]
+
+
+# FMI specifics appended after a signal of the table (by signal name)
+_EXTRAS = {"gnss_new_epoch": _gnss_extras, "odometer_ds": _odometer_extras}
+
+
+def _sensor_vars(dims: Dimensions, causality: str) -> list[Var]:
+    """Every sensor signal of the table (the observation's, time aside) that the scenario
+    has, in table order, with the FMU-only extras: the plant's outputs and the estimator's
+    inputs. A sensor signal declared in :data:`navsim.signals.SIGNALS` appears in both FMUs."""
+    out: list[Var] = []
+    for sig in SIGNALS:
+        if not sig.observation or sig.group == "time" or (sig.optional and not getattr(dims, sig.optional, False)):
+            continue
+        out += _signal_vars(sig, dims, causality)
+        extra = _EXTRAS.get(sig.name)
+        if extra is not None:
+            out += extra(dims, causality)
+    return out
+
+
+def _time_vars(kind: str, dims: Dimensions) -> list[Var]:
+    t = signal("t")
     if kind == "estimator":  # the plant's counters, read to take each plant step once and in order
         return [
-            Var("time.t_s", "real", "input", "discrete", "s",
-                "The plant's time.t_s: end time of the plant's latest navigation step", 0.0, (), "time"),
+            *_signal_vars(t, dims, "input", t.description + _TIME_NOTE[kind]),
             Var("time.step", "int", "input", "discrete", "",
                 "The plant's time.step: navigation steps the plant has served; the estimator processes the "
                 "plant's data once, when this counter is one more than nav.step", 0, (), "time", low=0),
         ]
     return [
-        Var("time.t_s", "real", "output", "discrete", "s",
-            "End time of the latest navigation step served (holds between steps)", group="time"),
+        *_signal_vars(t, dims, "output", t.description + _TIME_NOTE[kind]),
         Var("time.step", "int", "output", "discrete", "",
             "Navigation steps served since the start of the episode (the estimator FMU reads it to take "
             "each step once)", group="time", low=0),
@@ -214,7 +295,7 @@ def _estimate_time_vars() -> list[Var]:
     return [
         Var("nav.t_s", "real", "output", "discrete", "s",
             "Time the nav.* solution refers to: the end of the plant step it has processed (0: the prior). "
-            "Under a Jacobi master it is one navigation step behind the FMU's time", group="solution"),
+            "Under a Jacobi master it is one communication step behind the FMU's time", group="solution"),
         Var("nav.step", "int", "output", "discrete", "",
             "Plant navigation steps processed (the step the nav.* solution refers to)", group="solution", low=0),
         Var("nav.lag_steps", "int", "output", "discrete", "",
@@ -222,88 +303,6 @@ def _estimate_time_vars() -> list[Var]:
             "plant-first Gauss-Seidel master; under a Jacobi or estimator-first master 1, or k for a "
             "communication step of k navigation steps)", group="solution",
             low=0),
-    ]
-
-
-def _imu_vars(dims: Dimensions, causality: str) -> list[Var]:
-    var = "continuous" if causality == "input" else "discrete"
-    start = 0.0 if causality == "input" else None
-    out = []
-    for r in range(1, dims.orders + 1):
-        what = "increment" if r == 1 else f"{r}-fold integral increment"
-        out.append(Var(f"imu.dtheta_r{r}", "real", causality, var, _DTHETA_UNITS[r - 1],
-                       f"Gyro {what} of angular rate over the interval, body axes (seed 000 eq. 1.14)",
-                       start, (3,), "imu"))
-    for r in range(1, dims.orders + 1):
-        what = "increment" if r == 1 else f"{r}-fold integral increment"
-        out.append(Var(f"imu.dv_r{r}", "real", causality, var, _DV_UNITS[r - 1],
-                       f"Accelerometer {what} of specific force over the interval, body axes (seed 000 eq. 1.14)",
-                       start, (3,), "imu"))
-    m = dims.samples_per_step
-    out += [
-        Var("imu.dtheta_sub", "real", causality, var, "rad",
-            "First-order gyro increments of the IMU samples of the last navigation step, body axes",
-            start, (m, 3), "imu"),
-        Var("imu.dv_sub", "real", causality, var, "m/s",
-            "First-order accelerometer increments of the IMU samples of the last navigation step, body axes",
-            start, (m, 3), "imu"),
-    ]
-    return out
-
-
-def _gnss_vars(dims: Dimensions, causality: str) -> list[Var]:
-    var = "discrete"
-    inp = causality == "input"
-    n = dims.channels
-
-    def s(x):
-        return x if inp else None
-
-    return [
-        Var("gnss.new_epoch", "bool", causality, var, "",
-            "True when a GNSS epoch fell in the last interval (the gnss.* arrays hold it)", s(False), (), "gnss"),
-        Var("gnss.t_s", "real", causality, var, "s", "Time of the latest GNSS epoch", s(0.0), (), "gnss"),
-        Var("gnss.receiver_outage", "bool", causality, var, "",
-            "True when the whole receiver was in an outage at the latest epoch", s(False), (), "gnss"),
-        Var("gnss.n_valid", "int", causality, var, "", "Valid channels at the latest epoch", s(0), (), "gnss",
-            low=0, high=n),
-        Var("gnss.prn", "int", causality, var, "", "Satellite number of each channel", s(0), (n,), "gnss",
-            low=0, high=255),
-        Var("gnss.valid", "bool", causality, var, "",
-            "Channel tracked at the latest epoch (above the mask, not in an outage)", s(False), (n,), "gnss"),
-        Var("gnss.pseudorange_m", "real", causality, var, "m",
-            "Pseudorange of each channel (0 where not valid)", s(0.0), (n,), "gnss", low=0.0, high=1e8),
-        Var("gnss.pseudorange_rate_mps", "real", causality, var, "m/s",
-            "Pseudorange rate (Doppler) of each channel, seed 003 eq. (3)", s(0.0), (n,), "gnss",
-            low=-1e4, high=1e4),
-        Var("gnss.sat_pos_e", "real", causality, var, "m",
-            "ECEF satellite position of each channel at transmission", s(0.0), (n, 3), "gnss", low=-1e8, high=1e8),
-        Var("gnss.sat_vel_e", "real", causality, var, "m/s",
-            "ECEF satellite velocity of each channel", s(0.0), (n, 3), "gnss", low=-1e4, high=1e4),
-    ]
-
-
-def _baro_vars(dims: Dimensions, causality: str) -> list[Var]:
-    if not dims.baro:
-        return []
-    from navsim.signals import BARO_KEY, MAX_PRESSURE_ALTITUDE_M, signal
-
-    sig = signal(BARO_KEY)  # name, unit and description from the signal table
-    return [Var(sig.fmu_name, "real", causality, "discrete", sig.unit,
-                sig.description + " (the reading at the end of the last interval)",
-                0.0 if causality == "input" else None, (), "baro", -MAX_PRESSURE_ALTITUDE_M, MAX_PRESSURE_ALTITUDE_M)]
-
-
-def _odometer_vars(dims: Dimensions, causality: str) -> list[Var]:
-    if not dims.odometer:
-        return []
-    inp = causality == "input"
-    return [
-        Var("odometer.ds_m", "real", causality, "discrete", "m",
-            "Wheel-odometer distance over the navigation steps of the last interval (pulses times the "
-            "pulse length; navsim.sensors.odometer)", 0.0 if inp else None, (), "odometer", -1e4, 1e4),
-        Var("odometer.pulses", "int", causality, "discrete", "",
-            "Wheel-encoder pulses counted over the same steps", 0 if inp else None, (), "odometer"),
     ]
 
 
@@ -419,9 +418,8 @@ def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]
     ``defaults`` maps parameter and input names to start values (from the scenario).
     """
     defaults = defaults or {}
-    return (_info_vars() + _plant_parameters(defaults) + _motion_inputs(defaults) + _time_vars("plant")
-            + _imu_vars(dims, "output") + _gnss_vars(dims, "output") + _odometer_vars(dims, "output") + _baro_vars(dims, "output")
-            + _truth_vars() + _prior_vars("output"))
+    return (_info_vars() + _plant_parameters(defaults) + _motion_inputs(defaults) + _time_vars("plant", dims)
+            + _sensor_vars(dims, "output") + _truth_vars() + _prior_vars("output"))
 
 
 def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
@@ -436,9 +434,8 @@ def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[
             "Estimator keyword options as a TOML inline table body, e.g. 'gnss_update = \"pseudorange\"'",
             defaults.get("estimator.options", ""), (), "parameter"),
     ]
-    return (_info_vars() + params + _imu_vars(dims, "input") + _gnss_vars(dims, "input")
-            + _odometer_vars(dims, "input") + _baro_vars(dims, "input") + _prior_vars("input")
-            + _time_vars("estimator") + _estimate_time_vars() + _solution_vars() + _uncertainty_vars())
+    return (_info_vars() + params + _sensor_vars(dims, "input") + _prior_vars("input")
+            + _time_vars("estimator", dims) + _estimate_time_vars() + _solution_vars() + _uncertainty_vars())
 
 
 def observation_variables(dims: Dimensions) -> list[Var]:

@@ -61,3 +61,29 @@ def test_dimensions_of_simulator(scenario):
     d = Dimensions.of(sim)
     assert d == Dimensions(len(sim.constellation.prn), scenario.imu.orders, scenario.timing.samples_per_step)
     assert all(isinstance(x, int) for x in dataclasses.astuple(d))
+
+
+def test_sensor_variables_come_from_the_signal_table(monkeypatch):
+    """Every sensor signal of navsim.signals.SIGNALS is a plant output and an estimator
+    input of the same name, unit and shape; a signal declared there appears in both FMUs
+    (declared here with a flag the dimensions carry)."""
+    import navsim.fmu.variables as fv
+    from navsim import signals
+
+    plant = {v.name: v for v in plant_variables(DIMS)}
+    est = {v.name: v for v in estimator_variables(DIMS)}
+    for sig in signals.SIGNALS:
+        if not sig.observation or sig.optional:
+            continue
+        names = [f"{sig.fmu_name}{r}" for r in range(1, DIMS.orders + 1)] if sig.order_units else [sig.fmu_name]
+        for name in names:
+            assert plant[name].causality == "output" and est[name].causality == "input", name
+            assert plant[name].description.endswith(sig.description) or sig.description in plant[name].description
+    extra = signals.Signal("wheel_temp", "odometer", (1,), "", "A new sensor output", "odometer.temperature",
+                           observation=True)
+    monkeypatch.setattr(fv, "SIGNALS", (*signals.SIGNALS, extra))
+    p = {v.name: v for v in fv.plant_variables(DIMS)}
+    e = {v.name: v for v in fv.estimator_variables(DIMS)}
+    assert p["odometer.temperature"].causality == "output" and p["odometer.temperature"].start is None
+    assert e["odometer.temperature"].causality == "input" and e["odometer.temperature"].start == 0.0
+    assert p["odometer.temperature"].shape == () and p["odometer.temperature"].description == "A new sensor output"
