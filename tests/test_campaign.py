@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from navsim import campaign as cp
+from navsim.campaign import executors as cp_executors
 from navsim.errors import ConfigError
 from navsim.metrics import score_episode
 from navsim.report import run_one
@@ -176,9 +177,9 @@ def test_a_finished_row_is_never_overwritten(tmp_path):
     try:
         ok = {"status": "ok", "scores": {"x": 1.0}, "outages": [], "samples": b"", "error": None, "wall_s": 1.0,
               "worker": "a"}
-        cp._store(con, task, ok)
-        cp._store(con, task, dict(ok, scores={"x": 2.0}))
-        cp._store(con, task, dict(ok, status="failed", scores=None, error="late duplicate"))
+        cp_executors._store(con, task, ok)
+        cp_executors._store(con, task, dict(ok, scores={"x": 2.0}))
+        cp_executors._store(con, task, dict(ok, status="failed", scores=None, error="late duplicate"))
         rows = con.execute("SELECT status, scores FROM episodes").fetchall()
     finally:
         con.close()
@@ -316,7 +317,7 @@ def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout():
     pytest.importorskip("distributed")
     t0 = time.perf_counter()
     with pytest.raises(cp.CampaignInterrupted, match="no Dask scheduler answered at tcp://127.0.0.1:9"):
-        cp._run_dask([], "tcp://127.0.0.1:9", lambda t, o: None, timeout_s=1.0)
+        cp_executors._run_dask([], "tcp://127.0.0.1:9", lambda t, o: None, timeout_s=1.0)
     assert time.perf_counter() - t0 < 15
 
 
@@ -367,7 +368,7 @@ def test_dask_result_lost_after_completion_is_resubmitted_then_stored_as_failed(
     plan = {"a": [lost, ok], "b": [ok], "c": [lost] * (cp.DASK_RESUBMITS + 1)}
     client = Client(plan)
     got = {}
-    cp._run_dask(["a", "b", "c"], client, lambda task, out: got.setdefault(task, []).append(out))
+    cp_executors._run_dask(["a", "b", "c"], client, lambda task, out: got.setdefault(task, []).append(out))
     assert got["a"] == [ok] and got["b"] == [ok]
     assert len(got["c"]) == 1 and got["c"][0]["status"] == "failed" and "OSError" in got["c"][0]["error"]
     assert client.submitted.count("a") == 2 and client.submitted.count("c") == cp.DASK_RESUBMITS + 1

@@ -89,7 +89,7 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from .errors import ConfigError, DependencyNotInstalled, NavsimError
+from ..errors import ConfigError, DependencyNotInstalled, NavsimError
 
 __all__ = [
     "ScenarioEntry",
@@ -192,7 +192,7 @@ def _check_keys(table: dict, allowed: Iterable[str], where: str, source: str | N
 
 
 def _seeds(value, source) -> tuple[int, ...]:
-    from .report import parse_seeds
+    from ..report import parse_seeds
 
     if isinstance(value, list):
         if not value or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value):
@@ -219,9 +219,9 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
     to it). stem : default name and file stem. Errors are
     :class:`~navsim.errors.ConfigError` naming the field (e.g. ``scenarios[1].overrides``).
     """
-    from .estimators import available, make
-    from .estimators import check as check_estimator
-    from .scenario import load_scenario
+    from ..estimators import available, make
+    from ..estimators import check as check_estimator
+    from ..scenario import load_scenario
 
     base = Path(base_dir)
     if not isinstance(data, dict):
@@ -386,9 +386,9 @@ def run_episode_task(task: EpisodeTask) -> dict:
     :data:`SAMPLES_PER_EPISODE` values), ``error`` (text), ``wall_s`` and ``worker``
     (host:pid).
     """
-    from .metrics import error_series, score_episode
-    from .report import run_one
-    from .scenario import Scenario
+    from ..metrics import error_series, score_episode
+    from ..report import run_one
+    from ..scenario import Scenario
 
     t0 = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
@@ -752,7 +752,7 @@ def read_rows(database: str | Path, spec: CampaignSpec | None = None) -> list[di
 
 
 def _score_from_row(row: dict):
-    from .metrics import SCORE_FIELDS, EpisodeScore, Outage
+    from ..metrics import SCORE_FIELDS, EpisodeScore, Outage
 
     flat = row["scores"]
     values = {k: (math.nan if flat.get(k) is None and k != "seed" else flat.get(k)) for k in SCORE_FIELDS}
@@ -763,8 +763,8 @@ def _score_from_row(row: dict):
 def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
     """One :class:`navsim.report.BenchResult` per scenario label from the database rows
     (estimators named by their labels, mean and interval per metric)."""
-    from .metrics import aggregate
-    from .report import BenchResult
+    from ..metrics import aggregate
+    from ..report import BenchResult
 
     if rows is None:
         rows = read_rows(spec.database, spec) if Path(spec.database).exists() else []
@@ -793,8 +793,8 @@ def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
 
 
 def _html_table(result, metrics: Sequence[str]) -> str:
-    from .metrics import EpisodeScore
-    from .report import format_cell
+    from ..metrics import EpisodeScore
+    from ..report import format_cell
 
     units = EpisodeScore.units()
     names = result.estimators
@@ -810,9 +810,9 @@ def _html_table(result, metrics: Sequence[str]) -> str:
 def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: bool = True) -> list[Path]:
     """Write the campaign report: per scenario a folder with navsim.report's bench
     files and plots, and ``index.md`` / ``index.html`` over all scenarios."""
-    from .metrics import NUMERIC_FIELDS
-    from .provenance import provenance, provenance_line
-    from .report import KEY_METRICS, bench_markdown, write_bench
+    from ..metrics import NUMERIC_FIELDS
+    from ..provenance import provenance, provenance_line
+    from ..report import KEY_METRICS, bench_markdown, write_bench
 
     out = Path(out_dir) if out_dir is not None else Path(spec.report_dir)
     out.mkdir(parents=True, exist_ok=True)
