@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from navsim import campaign as cp
+from navsim.campaign import database as cp_database
 from navsim.campaign import executors as cp_executors
 from navsim.errors import ConfigError
 from navsim.metrics import score_episode
@@ -177,9 +178,9 @@ def test_a_finished_row_is_never_overwritten(tmp_path):
     try:
         ok = {"status": "ok", "scores": {"x": 1.0}, "outages": [], "samples": b"", "error": None, "wall_s": 1.0,
               "worker": "a"}
-        cp_executors._store(con, task, ok)
-        cp_executors._store(con, task, dict(ok, scores={"x": 2.0}))
-        cp_executors._store(con, task, dict(ok, status="failed", scores=None, error="late duplicate"))
+        cp_database.store(con, task, ok)
+        cp_database.store(con, task, dict(ok, scores={"x": 2.0}))
+        cp_database.store(con, task, dict(ok, status="failed", scores=None, error="late duplicate"))
         rows = con.execute("SELECT status, scores FROM episodes").fetchall()
     finally:
         con.close()
