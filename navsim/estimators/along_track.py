@@ -83,13 +83,7 @@ its derivative (cubic Hermite like the rest). Both updates then use the antenna'
 (the antenna velocity is ``v dr_a/ds``), and the "fix" mode projects ``r_fix - C_eb l``
 on the track and predicts the velocity fix along ``t_e`` as ``v t_e . dr_a/ds`` (AT.10).
 The offset from the body oscillations (3 m x 0.15 deg = 8 mm on mountain-railway) is
-left out. Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
-forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
-horizontal RMS after 20 s, along-track NEES of 2 dof): pseudorange update 0.16 m
-compensated, NEES 2.05, per-second means over 20 seeds inside the 95 % band 100 % of the
-time, against 1.74 m and NEES 215 uncompensated (5 seeds); "fix" update 0.19 m, NEES
-1.88, 92 %, against 1.44 m. Full scenarios (standalone receiver, 400 s, 2 seeds):
-mountain-railway 0.70 m against 1.67 m, urban-road 0.81 m against 2.21 m.
+left out.
 
 Wheel odometer (``context.odometer``; option ``odometer``)
 ---------------------------------------------------------
@@ -116,17 +110,6 @@ filter's own acceleration estimate decides whether slip is possible), after whic
 clone is constant, so its rows of Phi are the identity. Without an odometer in the
 context, or with ``odometer="none"``, the filter is the one without these states.
 
-Measured (tests/estimators/test_odometer_aiding.py): 20 seeds of the lever-arm case
-(antenna at the IMU, matched tactical IMU, rail tachometer without slip, 200 s with an
-80-s outage): along-track NEES 1.99 of 2, every per-second seed average inside the 95 %
-band, NIS/dof 1.01. Full mountain-railway (standalone receiver, tachometer with slip,
-seed 0), horizontal error at the exit of the 31 / 155 / 47-s tunnels: consumer MEMS
-0.68 / 35.3 / 1.9 m without, 0.66 / 2.3 / 1.3 m with; tactical 0.09 / 8.1 / 0.13 m
-without, 0.68 / 2.2 / 1.2 m with. With the tactical IMU the short tunnels come out worse
-with the odometer (the same with slip switched off): the scale factor is calibrated
-against the standalone receiver's time-correlated errors, which the filter takes as
-white, so its scale-factor estimate is off by ~0.1 % with a covariance saying 0.06 %.
-
 Output
 ------
 Position, tangent, heading, grade and cant come from the track at ``s``; velocity is
@@ -148,15 +131,7 @@ Map table: at ``reset`` the track is sampled every ``table_step_m`` (5 m) metres
 where it turns sharply, see :class:`TrackTable`) and evaluated between nodes by cubic
 Hermite interpolation on values and analytic s-derivatives (ECEF position with the ECEF
 tangent as derivative, geodetic position, ENU tangent, heading, grade, cant, ``g_t``).
-Measured against :func:`navsim.track.track_frame` at 3000 random points: mountain-railway
-3e-6 m in position, 8e-7 in the tangent, 1e-5 rad in cant (the design-cant ramps);
-urban-road (15-m corners, spacing refined to ~0.7 m) 3e-6 m and 3e-6. One
-``track_frame`` call costs ~0.5 ms, a table look-up ~1-2 us.
 
-Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, ``step_batch``): ~9 us per step
-(15 us on the loaded shared machine), 0.9-1.5 s for the 1000-s episode; the "fix" mode
-adds ~12 us per step (the least-squares fix and the projection at each epoch);
-``step`` costs ~0.2-0.5 ms per call.
 
 References
 ----------

@@ -45,18 +45,6 @@ the horizontal one decorrelates in 0.7-1.3 ks: correlation times 7200 s and 1200
 in the simulator) is not a separate state: the nominal white sigma includes its horizon
 value (hypot(1, 3) m), conservative for all but the lowest satellites.
 
-Measured (tests/estimators/test_loosely.py; paper-2012 track, matched tactical IMU,
-standalone receiver, 20 seeds x 200 s): mean NEES 6.9 with and without multipath
-(white fixes: ~570 / ~3000), per-second seed averages never above the 95 % band, inside
-it 25 % of the time and below otherwise (conservative: the simulator's atmosphere is one
-draw, 0.78 sigma, the same in every seed); NIS/dof 1.006 without multipath (the white
-part matches), 0.57 with; vertical RMS 3.7 m against 15.6 m. Full mountain-railway
-(``navsim bench mountain-railway --estimators lc-ekf --seeds 0:2``), white -> auto:
-ANEES 682 -> 7.2 (steps inside the Monte Carlo band 1.4 % -> 91 %), vertical RMSE 15.8
--> 4.3 m, horizontal RMSE 32.6 -> 32.5 m (set by the drift in the 155-s tunnel, 419 /
-135 m for seeds 0 / 1, unchanged), vertical drift in the tunnels (RMS) 17 -> 4.9 m;
-33-41 us per step against 28-30 us (a second LS fix per epoch, three more states).
-
 Antenna lever arm (``context.gnss.lever_arm_b_m`` = l, body axes; option ``lever_arm``):
 the fixes refer to the antenna, so the predicted measurements are those of the antenna
 (:func:`navsim.estimators._inserror.lever_arm_terms`)::
@@ -70,14 +58,6 @@ of ``L`` (LA.3): identity on position/velocity plus the attitude columns ``-[C l
 (position) and ``-[C (omega x l) x] + [omega_ie x][C l x]`` (velocity) and the gyro-bias
 columns ``-C [l x]`` (velocity). With a zero lever arm (or ``lever_arm="none"``) the
 code is the one without these terms, number for number.
-
-Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
-forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
-horizontal RMS after 20 s): compensated 0.26 m, mean NEES 9.1, per-second means over
-20 seeds inside the 95 % chi-square band 99 % of the time; uncompensated (5 seeds)
-1.48 m horizontal, 2.95 m vertical, NEES 239. On the full mountain-railway scenario
-(standalone receiver, 400 s, 2 seeds) 1.24 m compensated (the same as with the antenna at
-the IMU) against 1.73 m uncompensated.
 
 Wheel odometer and non-holonomic constraint (``context.odometer``; option ``odometer``)
 ---------------------------------------------------------------------------------
@@ -106,20 +86,6 @@ x(t)`` (LC.5), F the error dynamics of the engine's current covariance interval 
 sigma of the rail tachometer, so the end-of-interval error is not good enough). A GNSS
 update inside an odometer interval removes its correction from the INS velocities
 already summed.
-
-Measured (tests/estimators/test_odometer_aiding.py): on the lever-arm case with the
-antenna at the IMU and a rail tachometer without slip, a 60-s outage ends with 25.5 /
-31.4 / 70.2 m of horizontal error without the odometer and 2.2 / 0.75 / 1.4 m with it
-(seeds 0 / 1 / 2); 20 seeds, 200 s with an 80-s outage: mean NEES 6.7 of 9 (the filter
-is conservative: the constraint rows' R against a true violation of zero and the
-quantisation of consecutive spans taken as white; odometer-update NIS/dof ~0.45), every
-per-second seed average below the upper 95 % bound. Full mountain-railway (standalone
-receiver, rail tachometer with slip, seed 0), horizontal error at the exit of its
-31 / 155 / 47-s tunnels: tactical IMU 1.6 / 419 / 9.2 m without, 1.7 / 11.2 / 2.4 m with;
-consumer MEMS 13.9 / 1475 / 53 m without, 3.5 / 141 / 4.4 m with (heading drift, which
-neither the odometer nor the constraint observes, is what is left).
-``odometer="none"``, or no odometer in the context, is the filter without these terms,
-number for number.
 
 Barometric height aiding (``context.baro``; option ``baro``)
 -----------------------------------------------------------

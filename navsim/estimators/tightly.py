@@ -99,13 +99,7 @@ columns (``-C [l x] eg``). The atmospheric delays are evaluated at the antenna t
 (height ``h + (C l)_U``; their attitude partials likewise without the tilt of the local
 vertical). The UKF evaluates (TC.8) exactly at each hypothesis (attitude
 ``exp(-[psi x]) C``, rate ``omega - eg``). With a zero lever arm (or ``lever_arm="none"``)
-the code path is the one without these terms, number for number. Measured (tests/estimators/lever_arm_case.py: the curves of mountain-railway, antenna 1.5 m
-forward and 3 m up, matched tactical IMU, white GNSS of 1 m / 0.05 m/s, 100 s;
-horizontal RMS after 20 s), EKF and UKF alike: compensated 0.26 m, vertical 0.12 m, mean
-NEES 9.0, per-second means over 20 seeds inside the 95 % band 100 % of the time;
-uncompensated (5 seeds) 1.49 m horizontal, 3.01 m vertical, NEES 926. Full
-mountain-railway (standalone receiver, 400 s, 2 seeds, EKF): 0.48 m compensated (0.47 m
-with the antenna at the IMU), 1.53 m uncompensated.
+the code path is the one without these terms, number for number.
 
 EKF
     Joseph-form update (:func:`navsim.estimators._inserror.joseph_update`), symmetrised,
@@ -146,29 +140,6 @@ whole navigation steps at global step multiples) the pressure altitude z gives::
 
 ``baro="none"``, no barometer in the context, or the UKF: the filter without it, number
 for number.
-
-Speed (paper-2012, 100 Hz, 1 Hz GNSS, 7 satellites, one core of the development
-machine): EKF ~35 us per step, UKF ~37 us per step, i.e. ~3.5-3.7 s for the 1000-s
-episode (38-42 us on the loaded shared machine, where the INS alone took 26 us), of
-which the strapdown loop is ~20 us per step. (Anchors from the research
-notes: filterpy EKF 32-47 us, UKF 250-400 us per step.) ``step`` alone costs ~1 ms per
-call (per-call strapdown set-up); use ``step_batch``. The atmospheric states add
-~0.1 ms (EKF) and ~0.06 ms (UKF) to each GNSS update (measured on the loaded shared
-machine, where an update took 0.85 and 0.65 ms), i.e. ~0.05-0.1 s per 1000-s episode,
-2-3 %; without them the code path is the old one.
-
-Measured effect of the atmospheric states (paper-2012 track and IMU; the filter blind to
-the atmosphere, ``atmosphere="none"``, is the filter before they existed, number for
-number):
-
-* standalone receiver without multipath (the filter's model), 300 s with an outage
-  150-210 s, 20 seeds: mean NEES 8134 -> 9.4 (expected 9), per-second seed means in the
-  95 % chi-square band 0 % -> 100 % of the time, EKF and UKF alike;
-* full standalone preset (multipath 3 m at the horizon, 30-s correlation, covered only
-  by the nominal pseudorange sigma), 1000 s with the 400-700 s outage, 3 seeds:
-  horizontal RMS error 1.66 -> 0.42 m while >= 4 satellites are tracked (2.27 -> 1.75 m
-  over the whole episode, which the outage drift dominates), mean NEES 2094 -> 8.3;
-  mountain-railway (standalone, tactical IMU, 1 seed): 1.79 -> 0.44 m with satellites.
 
 Divergence: ``extra["diverged"]`` is set when the engine had to repair P (non-finite,
 negative variance), an update failed, or NIS/dof exceeded ``nis_divergence`` at

@@ -54,7 +54,7 @@ The same discrete equations are solved without the per-step loop by
 ``method="scan"`` (:mod:`navsim.strapdown.scan`: the body rotations' prefix products by a
 parallel scan, the navigation-frame terms by a fixed-point iteration over windows of
 steps, velocity and position by cumulative sums); it agrees with the loop to rounding and
-is 4-8 times faster on long runs. ``method="auto"`` (the default) uses it from
+is faster on long runs (figures: ``benchmarks/RESULTS.md``). ``method="auto"`` (the default) uses it from
 :data:`AUTO_SCAN_MIN_STEPS` steps on. :func:`body_terms` and
 :func:`integrate_body_terms` expose the two stages separately.
 

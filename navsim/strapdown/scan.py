@@ -46,20 +46,13 @@ from a known state:
    each half is solved in turn (high dynamics, very long windows).
 
 Accuracy: with the same body terms the scan solution differs from the sequential one by
-rounding only. Measured over 200 s at 100 Hz on the moving WGS-84 trajectory of
-tests/strapdown/test_ins.py (tests/strapdown/test_ins_scan.py): latitude/longitude 1 ulp
-(7.1e-10 m), height 2e-12 m, velocity 1.5e-12 m/s, quaternion 1.2e-14, against the loop's
-own change under 1-ulp input perturbations of 7.1e-10 m, 3e-13 m, 6e-13 m/s, 1e-14; both
-are far below the algorithms' error against the analytic truth (2e-8 m, 2e-10 m/s), and
-the scan's attitude error is the smaller (1.4e-14 against 3.6e-14 rad: fewer roundings
-than one per step).
+rounding only.
 
 Chunking: windows start at the first step of each call and have ``window`` steps
 (the last one fewer). Splitting a run into calls at multiples of ``window`` steps gives
 *exactly* the numbers of one call (the iteration of a window depends only on its start
 state and its data). Splitting elsewhere moves the window boundaries and changes the
-numbers at the rounding level (measured over 50 s: latitude 1 ulp, height 1.2e-12 m,
-velocity 2e-13 m/s, quaternion 1.1e-15).
+numbers at the rounding level.
 
 References
 ----------
