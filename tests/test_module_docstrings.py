@@ -44,7 +44,8 @@ DOCS = _module_docstrings()
 
 def test_the_walk_sees_the_docstrings():
     names = {name for name, _ in DOCS}
-    assert {"navsim/episode.py", "envs/navigation.py", "fmu/runtime.py", "navsim/estimators/paper_ekf/__init__.py"} <= names
+    assert {"navsim/episode.py", "envs/navigation.py", "fmu/runtime.py",
+            "navsim/estimators/paper_ekf/__init__.py"} <= names
 
 
 @pytest.mark.parametrize("kind", sorted(FIGURE_PATTERNS))
