@@ -130,6 +130,8 @@ References
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 import numpy as np
@@ -251,6 +253,11 @@ class LooselyCoupledEkf(NoiseScalable):
         Factors on the nominal IMU white-noise densities and bias sigmas (Q tuning).
     measurement_scale : float
         Factor on the GNSS sigmas (R tuning).
+    gyro_scale_sigma, accel_scale_sigma, scale_tau_s : float
+        Unmodelled gyro and accelerometer scale-factor/misalignment: 1-sigma of each element
+        of the matrices (dimensionless, default 0: off) and the correlation time (s,
+        default 5), covered as rate- and acceleration-proportional attitude and velocity
+        noise (:mod:`navsim.estimators._inserror`, (RS.1), (RS.2)).
     covariance_period_s : float or None
         Longest covariance interval (default: the GNSS period, at most 1 s).
     divergence_probability : float
@@ -302,7 +309,8 @@ class LooselyCoupledEkf(NoiseScalable):
                  odometer: str = "auto", odometer_period_s: float = 1.0, nhc: bool = True,
                  nhc_sigma_mps: float = 0.05, fix_error: str = "auto",
                  fix_error_tau_s: tuple[float, float] = (1200.0, 7200.0), baro: str = "auto",
-                 baro_period_s: float = 1.0) -> None:
+                 baro_period_s: float = 1.0, gyro_scale_sigma: float = 0.0, accel_scale_sigma: float = 0.0,
+                 scale_tau_s: float = 5.0) -> None:
         if baro not in ("auto", "none"):
             raise ConfigError("baro", "'auto' or 'none'", baro)
         if isinstance(baro_period_s, bool) or not (isinstance(baro_period_s, (int, float)) and baro_period_s > 0.0
@@ -310,6 +318,9 @@ class LooselyCoupledEkf(NoiseScalable):
             raise ConfigError("baro_period_s", "a positive finite number", baro_period_s)
         self.baro = baro
         self.baro_period_s = float(baro_period_s)
+        self._scale = dict(gyro_scale_sigma=float(gyro_scale_sigma), accel_scale_sigma=float(accel_scale_sigma),
+                           scale_tau_s=float(scale_tau_s))
+        ImuNoise(**self._scale)  # checks them
         if fix_error not in ("auto", "white"):
             raise ConfigError("fix_error", "'auto' or 'white'", fix_error)
         tau = tuple(fix_error_tau_s)
@@ -357,6 +368,8 @@ class LooselyCoupledEkf(NoiseScalable):
     def reset(self, context: Context, prior) -> None:
         """Start an episode from the prior (INS state and 9 x 9 covariance)."""
         noise = ImuNoise.from_nominal(context.imu, noise_scale=self.noise_scale, bias_scale=self.bias_scale)
+        if self._scale["gyro_scale_sigma"] > 0.0 or self._scale["accel_scale_sigma"] > 0.0:  # (RS.1), (RS.2)
+            noise = dataclasses.replace(noise, **self._scale)
         period = self.covariance_period_s or min(context.gnss_period_s, 1.0)
         steps = max(1, round(period / context.nav_period_s))
         spec = getattr(context, "odometer", None)

@@ -166,6 +166,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -685,8 +686,13 @@ class TightlyCoupledOptions:
     lever_arm: str = "auto"
     baro: str = "auto"
     baro_period_s: float = 1.0
+    gyro_scale_sigma: float = 0.0
+    accel_scale_sigma: float = 0.0
+    scale_tau_s: float = 5.0
 
     def __post_init__(self):
+        ImuNoise(gyro_scale_sigma=self.gyro_scale_sigma, accel_scale_sigma=self.accel_scale_sigma,
+                 scale_tau_s=self.scale_tau_s)  # checks them
         if self.baro not in ("auto", "none"):
             raise ConfigError("tightly.baro", "'auto' or 'none'", self.baro)
         if isinstance(self.baro_period_s, bool) or not (isinstance(self.baro_period_s, (int, float))
@@ -734,6 +740,9 @@ class _TightlyCoupled(NoiseScalable):
         opt = self.options
         self.context = context
         noise = ImuNoise.from_nominal(context.imu, noise_scale=opt.noise_scale, bias_scale=opt.bias_scale)
+        if opt.gyro_scale_sigma > 0.0 or opt.accel_scale_sigma > 0.0:  # (RS.1), (RS.2) of _inserror
+            noise = dataclasses.replace(noise, gyro_scale_sigma=opt.gyro_scale_sigma,
+                                        accel_scale_sigma=opt.accel_scale_sigma, scale_tau_s=opt.scale_tau_s)
         gnss = context.gnss
         if gnss.clock_modelled:
             clock_sigma = (gnss.clock_bias_sigma_m, gnss.clock_drift_sigma_mps)
@@ -995,6 +1004,11 @@ class TightlyCoupledEkf(_TightlyCoupled):
         altimeter-bias state (EKF only); "none": without it.
     baro_period_s : float
         Interval of the barometer updates, s (default 1).
+    gyro_scale_sigma, accel_scale_sigma, scale_tau_s : float
+        Unmodelled gyro and accelerometer scale-factor/misalignment: 1-sigma of each element
+        of the matrices (dimensionless, default 0: off) and the correlation time (s,
+        default 5), covered as rate- and acceleration-proportional attitude and velocity
+        noise (:mod:`navsim.estimators._inserror`, (RS.1), (RS.2)).
 
     See the module docstring for the model and equations.
     """

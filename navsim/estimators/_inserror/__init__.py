@@ -51,6 +51,26 @@ differentiating ``C_est = (I + Psi) C`` with both attitude equations of
 tests/estimators/test_loosely.py checks F against finite differences of the nonlinear
 mechanisation equations.
 
+Unmodelled scale factor and misalignment (options, off by default): the attitude error
+grows by ``-C S omega`` with S the gyros' scale-factor/misalignment matrix; with the
+elements of S independent of sigma_s, ``cov(C S omega) = sigma_s^2 |omega|^2 I`` for any
+C, so it is covered as isotropic attitude noise of PSD
+
+    q_S = sigma_s^2 |omega|^2 tau_S                                                (RS.1)
+
+added to Qc's attitude block for each covariance interval, |omega| the mean rate of the
+interval before (the angle of the attitude change over it divided by its length, as the
+mean specific force), tau_S the correlation time of S omega (``scale_tau_s``, about
+the length of a turn: the error of one turn adds coherently, sigma_s^2 |omega|^2 T^2
+for a turn of T at a constant rate, which (RS.1) gives for T = tau_S). The
+accelerometers' matrix S_a likewise, on the velocity block:
+
+    q_Sa = sigma_a^2 |f_n + g_n|^2 tau_S                                           (RS.2)
+
+with the kinematic acceleration ``f_n + g_n`` of the interval before (the gravity part
+of ``S_a f`` is constant in body axes while the vehicle stays level, a bias the bias
+states absorb).
+
 Noise: white gyro and accelerometer noise enter (a), (b) through C with PSDs ARW^2 and
 VRW^2 (isotropic, so C drops out of Qc); the biases are first-order Gauss-Markov with the
 nominal sigma and correlation time, driving PSD ``2 sigma^2 / tau``, plus the

@@ -135,10 +135,26 @@ class ErrorStateIns:
         self._f_count = 0
         self._P0 = P
         self._pending = None
+        span = getattr(self, "_j", 0) * self.dt  # length of the interval that ends here, s
         self._j = 0  # steps into the interval
         st = self.state
-        F = error_dynamics(st.lat, st.h, st.velocity_n, quat_to_mat(st.quat_nb), self._f_n, self.earth, self.noise)
-        self._series = TransitionSeries.build(F, self.Qc)
+        C = quat_to_mat(st.quat_nb)
+        F = error_dynamics(st.lat, st.h, st.velocity_n, C, self._f_n, self.earth, self.noise)
+        Qc = self.Qc
+        if self.noise.gyro_scale_sigma > 0.0 or self.noise.accel_scale_sigma > 0.0:
+            # (RS.1), (RS.2) with the mean rate and acceleration of the interval that ends here
+            c0 = getattr(self, "_mat_nb0", None)
+            if c0 is not None and span > 0.0:
+                cos_angle = min(1.0, max(-1.0, 0.5 * (float(np.trace(c0.T @ C)) - 1.0)))
+                self._rate = math.acos(cos_angle) / span
+            Qc = Qc.copy()
+            Qc[6:9, 6:9] += np.eye(3) * (self.noise.gyro_scale_sigma * getattr(self, "_rate", 0.0)) ** 2 \
+                * self.noise.scale_tau_s
+            accel = self._f_n + np.asarray(self.earth.gravity_n(st.lat, st.h), dtype=float)  # kinematic part
+            Qc[3:6, 3:6] += np.eye(3) * (self.noise.accel_scale_sigma**2 * float(accel @ accel)
+                                         * self.noise.scale_tau_s)
+            self._mat_nb0 = C
+        self._series = TransitionSeries.build(F, Qc)
         self._poly = None  # navigation-block polynomial of P(tau), built on first use
         self._nav_block = None  # P9 at every step of the interval, for the one-step path
 

@@ -38,6 +38,14 @@ class ImuNoise:
         Gauss-Markov correlation times, s (``inf``: random constant / random walk).
     gyro_rrw_psd, accel_rrw_psd : float
         Rate-random-walk PSDs, rad^2/s^3 and m^2/s^5.
+    gyro_scale_sigma : float
+        1-sigma of each element of the gyros' unmodelled scale-factor/misalignment matrix
+        S (dimensionless; 0: not modelled, the default). Covered as rate-proportional
+        attitude noise (RS.1) of the engine, not as states.
+    accel_scale_sigma : float
+        The same for the accelerometers (RS.2).
+    scale_tau_s : float
+        Correlation time of the S omega and S_a a terms in (RS.1), (RS.2), s.
     """
 
     gyro_psd: float = 0.0
@@ -48,6 +56,9 @@ class ImuNoise:
     accel_bias_tau_s: float = math.inf
     gyro_rrw_psd: float = 0.0
     accel_rrw_psd: float = 0.0
+    gyro_scale_sigma: float = 0.0
+    accel_scale_sigma: float = 0.0
+    scale_tau_s: float = 5.0
 
     def __post_init__(self) -> None:
         for name in ImuNoise.__slots__:
