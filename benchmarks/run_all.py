@@ -31,7 +31,9 @@ PAGE = HERE / "RESULTS.md"
 
 # Arguments a script runs with for the results page (besides --quick when asked).
 DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"],
-                                       "bench_campaign": ["--seeds", "4", "--duration", "50"]}
+                                       "bench_campaign": ["--seeds", "4", "--duration", "50"],
+                                       "demo_ppo_adaptive": ["--steps", "6000", "--seeds", "10"],
+                                       "demo_ppo_driving": ["--steps", "10000", "--seeds", "10"]}
 
 
 def _scripts() -> list[str]:

@@ -10,8 +10,21 @@ can learn to inflate Q through an outage, distrust GNSS in a canyon, and so on. 
 owns no physics: the simulator makes the data, the estimator filters it.
 
 ## Action space
-``Box(-1, 1, (2,))``: ``q_scale = max_scale ** a[0]``, ``r_scale = max_scale ** a[1]``
-(default ``max_scale = 10``: factors 0.1..10); ``a = (0, 0)`` is the untuned filter.
+``Box(-1, 1, (2,))``: ``q_scale = q0 * max_scale ** a[0]``, ``r_scale = r0 * max_scale **
+a[1]`` (default ``max_scale = 10``: factors 0.1..10 around the untuned filter);
+``a = (0, 0)`` is the untuned filter, whose factors ``(q0, r0) = untuned_scale`` are
+applied at every reset.
+
+## The untuned filter (default: deliberately mis-tuned)
+By default ``untuned_scale = (1, 10)``: the filter the agent starts from has 10 times the
+measurement-noise variances its estimator sets for the receiver (R x 10: a filter set up
+for a worse receiver, which under-weights good fixes), so that there is something to
+tune; ``a[1] = -1`` restores the estimator's own R. With ``untuned_scale = (1, 1)`` the
+untuned filter is the estimator as it is, which on a consistent filter (lc-ekf on the
+white-noise GNSS of "paper-2012") leaves little to gain from a fixed setting: R x 0.1 and
+R x 10 do worse on average, and the Q factors of the action range change nothing measurable there
+(the tactical IMU's PSDs add far less to the one-second prediction than the covariance
+already holds). Measured figures in CHANGELOG.md (issue 15).
 
 ## Observation space
 ``Box(9,)`` float32, what the filter itself knows (never truth): log10 of its horizontal
@@ -41,7 +54,8 @@ changed Q takes effect at the estimator's next covariance interval (1 s by defau
 decision period).
 
 ## Version History
-* v0: initial version.
+* v0: initial version; the untuned filter mis-tuned by default (``untuned_scale = (1,
+  10)``, issue 15: the estimator as it is left nothing to learn).
 
 References
 ----------
@@ -110,7 +124,11 @@ class AdaptiveFilterEnv(gym.Env):
         pays the generator's fixed cost per pass (truth block fits, sensor set-up) at
         every decision.
     max_scale : float
-        Largest factor (the action maps to ``max_scale ** a``).
+        Largest factor around the untuned filter (the action maps to ``max_scale ** a``).
+    untuned_scale : (float, float)
+        ``(q0, r0)``, the factors of the untuned filter ``a = (0, 0)`` on the estimator's
+        own Q and R; default ``(1, 10)``, mis-tuned on purpose (module docstring);
+        ``(1, 1)`` for the estimator as it is.
     reward_cap : float
     **overrides
         Scenario sections.
@@ -119,7 +137,8 @@ class AdaptiveFilterEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
 
     def __init__(self, scenario="paper-2012", *, estimator: Any = "lc-ekf", estimator_options: dict | None = None,
-                 decision_period_s: float = 1.0, max_scale: float = 10.0, reward_cap: float = 1e4,
+                 decision_period_s: float = 1.0, max_scale: float = 10.0,
+                 untuned_scale: tuple[float, float] = (1.0, 10.0), reward_cap: float = 1e4,
                  chunk_steps: int = 10_000, render_mode: str | None = None, **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
@@ -128,6 +147,13 @@ class AdaptiveFilterEnv(gym.Env):
             raise ConfigError("render_mode", f"None or one of {self.metadata['render_modes']}", render_mode)
         if not (max_scale > 1.0 and math.isfinite(max_scale)):
             raise ConfigError("max_scale", "a finite factor > 1", max_scale)
+        try:
+            q0, r0 = (float(x) for x in untuned_scale)
+        except (TypeError, ValueError):
+            raise ConfigError("untuned_scale", "two positive finite factors (Q, R)", untuned_scale) from None
+        if not all(x > 0.0 and math.isfinite(x) for x in (q0, r0)):
+            raise ConfigError("untuned_scale", "two positive finite factors (Q, R)", untuned_scale)
+        self.untuned_scale = (q0, r0)
         self.scenario = resolve_scenario(scenario, overrides)
         timing = self.scenario.timing
         ratio = decision_period_s / timing.nav_period_s
@@ -209,15 +235,15 @@ class AdaptiveFilterEnv(gym.Env):
         self.prior = start.prior
         self.estimator.reset(self.context, self.prior)
         self.adapter.capture()
-        self.adapter.set(1.0, 1.0)
+        self.adapter.set(*self.untuned_scale)
         self.tape = EpisodeTape(self.n_steps)
         self._chunk = None
         self._prev = (0.0, 0.0)
         self._last_nis, self._frac_valid, self._last_fix_t = 0.0, 0.0, 0.0
         chunk, out = self._run_interval()  # the first interval runs untuned
-        info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "q_scale": 1.0, "r_scale": 1.0,
-                "config_hash": self.scenario.config_hash()}
-        self._scales = (1.0, 1.0)
+        info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "q_scale": self.untuned_scale[0],
+                "r_scale": self.untuned_scale[1], "config_hash": self.scenario.config_hash()}
+        self._scales = self.untuned_scale
         if self._renderer is not None:
             self._renderer.reset(self)
         if self.render_mode == "human":
@@ -228,7 +254,7 @@ class AdaptiveFilterEnv(gym.Env):
         if self._k < 0 or self._k >= self.n_steps:
             raise RuntimeError("AdaptiveFilterEnv.step: call reset() first")
         a = np.clip(np.asarray(action, dtype=float).reshape(2), -1.0, 1.0)
-        q, r = self.max_scale ** a[0], self.max_scale ** a[1]
+        q, r = self.untuned_scale[0] * self.max_scale ** a[0], self.untuned_scale[1] * self.max_scale ** a[1]
         self.adapter.set(q, r)
         self._scales = (float(q), float(r))
         self._prev = (float(a[0]), float(a[1]))

@@ -14,15 +14,27 @@ navigation quality meets control.
 the decision period.
 
 ## Observation space
-``Box(9,)`` float32: distance from the *estimated* arc length to the next platform mark
+``Box(13,)`` float32: distance from the *estimated* arc length to the next platform mark
 (km, [-1, 50]); estimated along-track speed / 30 m/s ([-1, 2]); time to the scheduled
 arrival at the next station / 600 s ([-5, 5]); the track grade at the estimated position
 x 10 ([-1, 1]); the estimator's along-track position sigma / 10 m ([0, 100]); the
 fraction of valid GNSS channels at the last epoch; the previous command; 1 while the
-train dwells at a station; the fraction of stations still to serve.
+train dwells at a station; the fraction of stations still to serve; then what a driver
+reads off for the final approach, from the same estimate:
 
-The estimated arc length is the estimate's position projected on the track (the map)
-near the previous one; the speed is the estimated velocity along the track tangent.
+* the distance to the mark / 10 m ([-3, 3]: metre resolution near the mark, where the
+  first entry's km scale cannot show it);
+* the braking-curve margin ``(v_b(d) - v) / 2 m/s`` ([-5, 5]), with
+  ``v_b(d) = sqrt(2 b_ref max(d, 0))`` the speed from which a constant deceleration
+  ``b_ref`` (half the train's ``max_brake_decel_mps2``, a service brake) stops the train
+  exactly at the mark, ``d`` the distance and ``v`` the speed estimates;
+* the margin to the line speed ``(cruise_speed_mps - v) / 30 m/s`` ([-1, 2]; the
+  timetable's cruise speed, the speed the schedule is built on);
+* the time left before the scheduled departure from the current station while dwelling
+  / 60 s ([0, 5]; 0 when not dwelling).
+
+Every entry is of order one over the task (no normalisation wrapper is needed, though
+SB3's ``VecNormalize`` does no harm).
 
 ## Rewards
 Per decision period ``[t0, t1]``::
@@ -48,6 +60,24 @@ therefore costs the lateness of every station plus ``unserved`` per station; dri
 stop bonuses. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10, w_late 5
 per minute, w_early 0.2 per minute, overrun 20, unserved 40, stop_tolerance_m 2.
 
+Optional shaping (``progress_shaping`` = c_p per km, ``braking_shaping`` = c_b per m/s;
+both default 0: off). A potential-based term in the sense of Ng, Harada and Russell [2]
+is added to every period's reward::
+
+    F = Phi(t1) - Phi(t0),
+    Phi = -c_p * max(0, s_last - s) / 1000 m - c_b * max(0, v - v_b(s_next - s))
+
+on the true motion, with ``s_last`` the last station's mark, ``s_next`` the next mark
+to serve and ``v_b`` the braking curve of the observation below (a service brake at
+half the train's maximum): progress along the line is paid as it is made, and speed in
+excess of what still stops the train at the next mark is charged while it lasts. Its
+sum over an episode telescopes to ``Phi(end) - Phi(start)``, a term that depends only on
+where and how fast the train ends (and on the station switches, where ``s_next``
+changes); the optimal policies of the task are unchanged in the undiscounted sense of
+[2], while a learner gets a dense signal before it first reaches a station.
+``info["task_reward"]`` is always the reward without it (the task's score; the demos
+evaluate on it).
+
 ## Starting state
 At rest at the first station, departing at its dwell time; the schedule is the core's
 jerk-limited minimum-time timetable (the scenario's ``motion`` section) stretched by
@@ -60,13 +90,17 @@ scenario's time runs out (the duration is extended to 1.25 x the scheduled journ
 
 ## Version History
 * v0: initial version; lateness charged as it accrues, unserved stations charged at the
-  end, an overrun misses the station instead of ending the episode (issue 15).
+  end, an overrun misses the station instead of ending the episode (issue 15); four
+  final-approach entries appended to the observation and the optional progress shaping
+  (issue 15, the learning demo).
 
 References
 ----------
 .. [1] Yin J. et al., Research and development of automatic train operation for railway
        transportation systems: a survey, Transportation Research Part C 85, 2017 (ATO
        objectives: punctuality, stopping accuracy, comfort, energy).
+.. [2] Ng A.Y., Harada D., Russell S., Policy invariance under reward transformations:
+       theory and application to reward shaping, ICML 1999 (potential-based shaping).
 """
 
 from __future__ import annotations
@@ -165,6 +199,10 @@ class DrivingEnv(gym.Env):
     train : TrainParameters, optional
     truth_in_info : bool
         Put the true s, v, a in the info.
+    progress_shaping, braking_shaping : float
+        c_p (per km of progress toward the last mark) and c_b (per m/s above the braking
+        curve) of the optional potential-based shaping (default 0: the task's reward
+        only).
     **overrides
         Scenario sections.
     """
@@ -176,7 +214,8 @@ class DrivingEnv(gym.Env):
     def __init__(self, scenario="mountain-railway", *, estimator: Any = "along-track",
                  estimator_options: dict | None = None, decision_period_s: float = 1.0, slack: float = 0.05,
                  stop_tolerance_m: float = 2.0, weights: dict | None = None, train: TrainParameters | None = None,
-                 truth_in_info: bool = False, render_mode: str | None = None, **overrides: Any) -> None:
+                 truth_in_info: bool = False, progress_shaping: float = 0.0,
+                 braking_shaping: float = 0.0, render_mode: str | None = None, **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
 
@@ -212,13 +251,19 @@ class DrivingEnv(gym.Env):
         self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
         self.stop_tolerance_m = float(stop_tolerance_m)
         self.truth_in_info = bool(truth_in_info)
+        for name, value in (("progress_shaping", progress_shaping), ("braking_shaping", braking_shaping)):
+            if not (value >= 0.0 and math.isfinite(value)):
+                raise ConfigError(name, "a non-negative finite weight", value)
+        self.progress_shaping, self.braking_shaping = float(progress_shaping), float(braking_shaping)
+        self._b_ref = 0.5 * self.plant.p.max_brake_decel_mps2  # service brake of the braking-curve entry
+        self._line_speed = float(base.motion.cruise_speed_mps)
         self.render_mode = render_mode
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * self.dt)}
         self._renderer = None
         self.n_steps = self.scenario.timing.steps
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-        low = np.array([-1, -1, -5, -1, 0, 0, -1, 0, 0], dtype=np.float32)
-        high = np.array([50, 2, 5, 1, 100, 1, 1, 1, 1], dtype=np.float32)
+        low = np.array([-1, -1, -5, -1, 0, 0, -1, 0, 0, -3, -5, -1, 0], dtype=np.float32)
+        high = np.array([50, 2, 5, 1, 100, 1, 1, 1, 1, 3, 5, 2, 5], dtype=np.float32)
         self.observation_space = gym.spaces.Box(low, high, dtype=np.float32)
         self._k = -1
 
@@ -255,10 +300,22 @@ class DrivingEnv(gym.Env):
     def _observation(self) -> np.ndarray:
         i = min(self.target, len(self.marks) - 1)
         held = 1.0 if self.t < self.hold_until else 0.0
-        x = np.array([(self.marks[i] - self._s_hat) / 1000.0, self._v_hat / 30.0, (self.sched_arr[i] - self.t) / 600.0,
+        d = float(self.marks[i] - self._s_hat)
+        v_brake = math.sqrt(2.0 * self._b_ref * max(d, 0.0))
+        x = np.array([d / 1000.0, self._v_hat / 30.0, (self.sched_arr[i] - self.t) / 600.0,
                       10.0 * self.map.sin_grade(self._s_hat), self._sigma_s / 10.0,
-                      self._frac_valid, self._u, held, (len(self.marks) - self.target) / len(self.marks)])
+                      self._frac_valid, self._u, held, (len(self.marks) - self.target) / len(self.marks),
+                      d / 10.0, (v_brake - self._v_hat) / 2.0, (self._line_speed - self._v_hat) / 30.0,
+                      max(self.hold_until - self.t, 0.0) / 60.0])
         return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _potential(self, s: float, v: float, target: int) -> float:
+        """Phi of the optional shaping (module docstring) at true (s, v), next station ``target``."""
+        phi = -self.progress_shaping * max(0.0, float(self.marks[-1]) - s) / 1000.0
+        if target < len(self.marks) and self.braking_shaping:
+            v_b = math.sqrt(2.0 * self._b_ref * max(float(self.marks[target]) - s, 0.0))
+            phi -= self.braking_shaping * max(0.0, v - v_b)
+        return phi
 
     def _navigate(self, n: int):
         """Push the plant's motion for n steps, simulate, run the estimator; update the
@@ -291,6 +348,8 @@ class DrivingEnv(gym.Env):
             u = -1.0
         self._u = 0.0 if dwelling else u
         k0 = self._k
+        phi0 = self._potential(self.plant.s, self.plant.v, self.target) if (
+            self.progress_shaping or self.braking_shaping) else 0.0
         s, v, a, energy_j = self.plant.advance(u, self.dt, n)
         if s[-1] > self.sim.track.length:
             s = np.minimum(s, self.sim.track.length)  # buffer stop at the end of the line
@@ -338,6 +397,9 @@ class DrivingEnv(gym.Env):
             unserved = len(self.marks) - self.target  # stations never reached
             reward -= w["unserved"] * unserved
             info["unserved"] = unserved
+        info["task_reward"] = float(reward)
+        if self.progress_shaping or self.braking_shaping:  # potential-based, on the true motion
+            reward += self._potential(float(s[-1]), float(v[-1]), self.target) - phi0
         if self.truth_in_info:
             info["truth"] = {"s": float(s[-1]), "speed": float(v[-1]), "accel": float(a[-1])}
         truncated = not terminated and self._k >= self.n_steps

@@ -57,8 +57,8 @@ def test_noise_hooks_scale_the_estimator(name):
         assert np.allclose(_get_path(est, path), 10.0 * base[path], rtol=1e-15, atol=0)
 
 
-def _episode(action, name="lc-ekf", seed=1):
-    env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, **OVER)
+def _episode(action, name="lc-ekf", seed=1, untuned_scale=(1.0, 1.0)):
+    env = gym.make("navsim/AdaptiveFilter-v0", estimator=name, untuned_scale=untuned_scale, **OVER)
     obs, info = env.reset(seed=seed)
     total, errors = 0.0, []
     while True:
@@ -84,6 +84,30 @@ def test_untuned_action_reproduces_the_estimator_and_reward_is_its_error():
     assert total == pytest.approx(-means.sum(), rel=1e-6)
     assert info["episode_score"].horizontal_rmse_m == pytest.approx(
         math.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1))), rel=1e-9)
+
+
+def test_default_untuned_filter_is_the_estimator_with_ten_times_r():
+    """The default a = 0 is lc-ekf with R x 10: the same numbers as lc-ekf built with its
+    measurement sigmas x sqrt(10) (measurement_scale: the same sigmas), and
+    a[1] = -1 there is the estimator's own R (products of 10 and 10^-1: 1 ulp apart)."""
+    from navsim.episode import run_episode
+    from navsim.metrics import error_series
+    from navsim.scenario import load_scenario
+
+    _, errors, _ = _episode([0.0, 0.0], untuned_scale=(1.0, 10.0))
+    record = run_episode(load_scenario("paper-2012").with_overrides(OVER),
+                         estimators.make("lc-ekf", measurement_scale=math.sqrt(10.0)), seed=1)
+    e = error_series(record).error[:, :3]
+    means = np.sqrt(np.sum(e * e, axis=1))[100:].reshape(-1, 100).mean(axis=1)
+    assert np.allclose(errors, means, rtol=1e-6)  # the per-interval means of the env's reward (test above)
+    restored = _episode([0.0, -1.0], untuned_scale=(1.0, 10.0))[1]
+    nominal = _episode([0.0, 0.0])[1]
+    assert np.allclose(restored, nominal, rtol=1e-9)  # 10 * 10^-1 = 1 up to rounding in the sigma
+    assert not np.allclose(errors, nominal, rtol=1e-3)  # and the mis-tuning is visible in the error
+    env = gym.make("navsim/AdaptiveFilter-v0", **OVER)
+    assert env.unwrapped.untuned_scale == (1.0, 10.0)
+    with pytest.raises(ConfigError):
+        gym.make("navsim/AdaptiveFilter-v0", untuned_scale=(1.0, 0.0), **OVER)
 
 
 def test_scales_change_the_outcome_and_bad_options():

@@ -153,3 +153,57 @@ def test_reward_order_three_stations_three_held_out_seeds():
     for seed in (100, 101, 102):
         stand, naive, timed = (_episode(p, seed, THREE_STOPS)[0] for p in (STAND, CONSTANT, _timetable_driver))
         assert stand + 10.0 < naive < timed - 30.0
+
+
+# ---------------------------------------------------------------- the final-approach observation and the optional shaping
+def test_shaping_telescopes_and_leaves_the_task_reward_unchanged():
+    """Potential-based shaping (Ng et al. 1999): over an episode the shaping terms sum to
+    Phi(end) - Phi(start). Full traction from rest at 400 m drives through the 900-m mark
+    (an overrun: no station left, so Phi(end) = 0; Phi(start) = -c_p * 0.5 km, the
+    braking term 0 at rest): the shaping totals 0.5 c_p; the task reward is that of the
+    env without shaping, the same operations in the same order (bit for bit)."""
+    full = lambda obs: np.ones(1, np.float32)  # noqa: E731
+    c_p, c_b = 20.0, 2.0
+    env = gym.make("navsim/TrainDriving-v0", progress_shaping=c_p, braking_shaping=c_b, **SHORT)
+    obs, _ = env.reset(seed=5)
+    shaped, task, braking_seen = [], [], False
+    while True:
+        obs, r, term, trunc, info = env.step(full(obs))
+        shaped.append(r)
+        task.append(info["task_reward"])
+        # the braking-curve entry: (v_b(d) - v) / 2 with v_b = sqrt(2 * 0.5 * max(d, 0)), from entries 0 and 1
+        d, v = obs[0] * 1000.0, obs[1] * 30.0
+        # float32 entries: d to ~1e-4 m, so sqrt(d) near d = 0 to ~1e-2 m/s
+        assert obs[10] == pytest.approx(np.clip((math.sqrt(max(d, 0.0)) - v) / 2.0, -5, 5), abs=5e-3)
+        assert obs[9] == pytest.approx(np.clip(d / 10.0, -3, 3), abs=1e-5)
+        braking_seen |= obs[10] < 0  # the train was above the braking curve at some point
+        if term or trunc:
+            break
+    assert term and "overrun_m" in info and braking_seen
+    assert sum(shaped) - sum(task) == pytest.approx(0.5 * c_p, rel=1e-9)
+    plain = _episode(full, 5, SHORT)
+    assert plain[0] == sum(task)
+
+
+def test_ppo_demo_pipeline_runs():
+    """The PPO demos' shared pipeline (benchmarks/_ppo_common.py) for a few hundred steps:
+    it trains, gives a policy with valid actions and a learning curve; no learning asserted."""
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is in the test extra only on Python 3.11")
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "_ppo_common.py"
+    spec = importlib.util.spec_from_file_location("_ppo_common", path)
+    common = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(common)
+    policy, stats = common.train("navsim/TrainDriving-v0", SHORT, 256, 2, n_steps=64,
+                                 train_kwargs={"progress_shaping": 20.0})
+    assert stats["steps"] == 256 and stats["wall_s"] > 0.0
+    assert len(stats["curve"]) >= 2 and all(math.isfinite(r) for _, r in stats["curve"])  # episodes of <= 100 steps
+    res = common.compare("navsim/TrainDriving-v0", SHORT, {"ppo": policy, "stand": STAND}, [7])
+    (ret, info), = res["ppo"]
+    assert math.isfinite(ret) and "episode_score" in info
+    env = gym.make("navsim/TrainDriving-v0", **SHORT)
+    obs, _ = env.reset(seed=7)
+    assert env.action_space.contains(np.asarray(policy(obs), dtype=np.float32).reshape(1))
+    assert res["stand"][0][0] == _episode(STAND, 7, SHORT)[0]
