@@ -89,7 +89,7 @@ def test_untuned_action_reproduces_the_estimator_and_reward_is_its_error():
 def test_default_untuned_filter_is_the_estimator_with_ten_times_r():
     """The default a = 0 is lc-ekf with R x 10: the same numbers as lc-ekf built with its
     measurement sigmas x sqrt(10) (measurement_scale: the same sigmas), and
-    a[1] = -1 there is the estimator's own R (products of 10 and 10^-1: 1 ulp apart)."""
+    a[1] = -1 there is the estimator's own R (products of 10 and 10^-1: to 1 ulp)."""
     from navsim.episode import run_episode
     from navsim.metrics import error_series
     from navsim.scenario import load_scenario
@@ -100,12 +100,16 @@ def test_default_untuned_filter_is_the_estimator_with_ten_times_r():
     e = error_series(record).error[:, :3]
     means = np.sqrt(np.sum(e * e, axis=1))[100:].reshape(-1, 100).mean(axis=1)
     assert np.allclose(errors, means, rtol=1e-6)  # the per-interval means of the env's reward (test above)
-    restored = _episode([0.0, -1.0], untuned_scale=(1.0, 10.0))[1]
     nominal = _episode([0.0, 0.0])[1]
-    assert np.allclose(restored, nominal, rtol=1e-9)  # 10 * 10^-1 = 1 up to rounding in the sigma
-    assert not np.allclose(errors, nominal, rtol=1e-3)  # and the mis-tuning is visible in the error
-    env = gym.make("navsim/AdaptiveFilter-v0", **OVER)
-    assert env.unwrapped.untuned_scale == (1.0, 10.0)
+    assert not np.allclose(errors, nominal, rtol=1e-3)  # the mis-tuning is visible in the error
+    env = gym.make("navsim/AdaptiveFilter-v0", **OVER).unwrapped
+    assert env.untuned_scale == (1.0, 10.0)
+    env.reset(seed=1)
+    est, gnss = env.estimator, env.context.gnss
+    assert est.sigma_pos == pytest.approx(math.sqrt(10.0) * gnss.pseudorange_sigma_m, rel=1e-15)
+    env.step(np.array([0.0, -1.0], dtype=np.float32))  # R x 10 x 10^-1: the estimator's own sigmas
+    assert est.sigma_pos == pytest.approx(gnss.pseudorange_sigma_m, rel=1e-15)
+    assert est.sigma_vel == pytest.approx(gnss.doppler_sigma_mps, rel=1e-15)
     with pytest.raises(ConfigError):
         gym.make("navsim/AdaptiveFilter-v0", untuned_scale=(1.0, 0.0), **OVER)
 
