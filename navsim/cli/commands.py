@@ -23,14 +23,14 @@ import json
 import sys
 from pathlib import Path
 
-from .errors import NavsimError
-from .overrides import scenario_from_args as _scenario
+from ..errors import NavsimError
+from ..overrides import scenario_from_args as _scenario
 
 __all__ = ["main"]
 
 
 def _cmd_scenarios(args) -> int:
-    from .scenario import list_scenarios, load_scenario
+    from ..scenario import list_scenarios, load_scenario
 
     for name in list_scenarios():
         print(f"{name:24s} {load_scenario(name).description}")
@@ -38,7 +38,7 @@ def _cmd_scenarios(args) -> int:
 
 
 def _cmd_estimators(args) -> int:
-    from .estimators import describe
+    from ..estimators import describe
 
     infos = describe(args.names or None)
     if args.json:
@@ -67,8 +67,8 @@ def _cmd_show(args) -> int:
 def _cmd_simulate(args) -> int:
     from tqdm import tqdm
 
-    from .io import check_output_dir, write_csv, write_npz
-    from .simulator import Simulator
+    from ..io import check_output_dir, write_csv, write_npz
+    from ..simulator import Simulator
 
     scenario = _scenario(args)
     sim = Simulator(scenario)
@@ -97,7 +97,7 @@ def _cmd_simulate(args) -> int:
     if args.plot:
         import numpy as np
 
-        from .plots import plot_episode
+        from ..plots import plot_episode
 
         if fmt == "csv":
             raise NavsimError("--plot: expected an .npz output to plot from, got a CSV output")
@@ -119,15 +119,15 @@ def _cmd_paper(args) -> int:
 
         if "seeds" not in inspect.signature(module.run).parameters:
             raise NavsimError(f"--seeds: seed {args.seed_id}'s reproduction has fixed runs; only 003 takes --seeds")
-        from .report import parse_seeds
+        from ..report import parse_seeds
 
         kwargs["seeds"] = parse_seeds(args.seeds)
-    from .provenance import provenance, provenance_line
+    from ..provenance import provenance, provenance_line
 
     rows = module.run(**kwargs)
     scenarios = None
     if args.seed_id == "003":  # its experiments run on the bundled paper-2012 scenarios
-        from .scenario import list_scenarios, load_scenario
+        from ..scenario import list_scenarios, load_scenario
 
         scenarios = {n: load_scenario(n) for n in list_scenarios() if n.startswith("paper-2012")}
     prov = provenance(scenarios)
@@ -190,7 +190,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .. import __version__
 
     parser = _Parser(prog="navsim", description=__doc__.split("\n")[0])
     parser.add_argument("--version", action="version", version=f"navsim {__version__}")
@@ -219,15 +219,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", default=None, metavar="PNG", help="also write a plot of the episode")
     p.set_defaults(func=_cmd_simulate)
 
-    from .report import add_bench_parser, add_run_parser
+    from ..report import add_bench_parser, add_run_parser
 
     add_run_parser(sub)
     add_bench_parser(sub)
-    from .campaign import add_campaign_parser
+    from ..campaign import add_campaign_parser
 
     add_campaign_parser(sub)
     try:
-        from .fmu.cli import add_fmu_parser
+        from ..fmu.cli import add_fmu_parser
     except ImportError:  # the FMU face is installed with the package; its extras may not be
         pass
     else:
@@ -284,5 +284,3 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
