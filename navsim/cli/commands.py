@@ -1,24 +1,10 @@
-"""The ``navsim`` command.
-
-Sub-commands
-------------
-``navsim --version``                         print the installed version
-``navsim scenarios``                         list the bundled scenarios
-``navsim estimators [NAME ...] [--json]``    list the estimators, their options and availability
-``navsim show SCENARIO``                     print the resolved scenario as TOML
-``navsim simulate SCENARIO --seed N -o F``   write truth and measurements (NPZ or CSV)
-``navsim run SCENARIO --estimator NAME``     score one estimator on one episode
-``navsim bench SCENARIO --estimators A,B``   compare estimators across seeds
-``navsim campaign SPEC.toml [--scheduler]``  scenarios x estimators x seeds, local or on Dask
-``navsim paper 000|001|003 [--json]``        rerun a seed paper's experiments
-``navsim fmu build|validate|cosim|run|info``  FMUs: export navsim, import motion FMUs
-
-Exit status: 0 on success, 2 on bad input (the message names the field), 1 otherwise.
+"""The handlers of the core sub-commands of ``navsim``: ``scenarios``, ``estimators``, ``show``,
+``simulate`` and ``paper`` (``run`` and ``bench``: :mod:`navsim.report`; ``campaign``:
+:mod:`navsim.campaign`; ``fmu``: :mod:`navsim.fmu.cli`).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -26,10 +12,8 @@ from pathlib import Path
 from ..errors import NavsimError
 from ..overrides import scenario_from_args as _scenario
 
-__all__ = ["main"]
 
-
-def _cmd_scenarios(args) -> int:
+def cmd_scenarios(args) -> int:
     from ..scenario import list_scenarios, load_scenario
 
     for name in list_scenarios():
@@ -37,7 +21,7 @@ def _cmd_scenarios(args) -> int:
     return 0
 
 
-def _cmd_estimators(args) -> int:
+def cmd_estimators(args) -> int:
     from ..estimators import describe
 
     infos = describe(args.names or None)
@@ -59,12 +43,12 @@ def _cmd_estimators(args) -> int:
     return 0
 
 
-def _cmd_show(args) -> int:
+def cmd_show(args) -> int:
     print(_scenario(args).to_toml(), end="")
     return 0
 
 
-def _cmd_simulate(args) -> int:
+def cmd_simulate(args) -> int:
     from tqdm import tqdm
 
     from ..io import check_output_dir, write_csv, write_npz
@@ -106,7 +90,7 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
-def _cmd_paper(args) -> int:
+def cmd_paper(args) -> int:
     import importlib
 
     try:
@@ -158,129 +142,3 @@ def _fmt(value) -> str:
     if isinstance(value, float):
         return f"{value:.4g}"
     return str(value)
-
-
-def _seed(text: str) -> int:
-    """argparse type: a seed is an integer >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    """argparse type: a whole number >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with the one-line error of the rest of the command (exit status 2)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    from .. import __version__
-
-    parser = _Parser(prog="navsim", description=__doc__.split("\n")[0])
-    parser.add_argument("--version", action="version", version=f"navsim {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
-
-    sub.add_parser("scenarios", help="list the bundled scenarios").set_defaults(func=_cmd_scenarios)
-
-    p = sub.add_parser("estimators", help="list the estimators, their options and availability")
-    p.add_argument("names", nargs="*", help="only these names or import paths")
-    p.add_argument("--json", action="store_true", help="print JSON instead of text")
-    p.set_defaults(func=_cmd_estimators)
-
-    p = sub.add_parser("show", help="print the resolved scenario as TOML")
-    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field, e.g. timing.duration_s=60")
-    p.set_defaults(func=_cmd_show)
-
-    p = sub.add_parser("simulate", help="write truth and measurements of one episode")
-    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
-    p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("-o", "--output", required=True, help="output file (.npz or .csv)")
-    p.add_argument("--format", choices=("npz", "csv"), help="default: from the file suffix")
-    p.add_argument("--chunk", type=_positive_int, default=10_000, help="steps generated per chunk (memory bound)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--plot", default=None, metavar="PNG", help="also write a plot of the episode")
-    p.set_defaults(func=_cmd_simulate)
-
-    from ..report import add_bench_parser, add_run_parser
-
-    add_run_parser(sub)
-    add_bench_parser(sub)
-    from ..campaign import add_campaign_parser
-
-    add_campaign_parser(sub)
-    try:
-        from ..fmu.cli import add_fmu_parser
-    except ImportError:  # the FMU face is installed with the package; its extras may not be
-        pass
-    else:
-        add_fmu_parser(sub)
-
-    p = sub.add_parser("paper", help="rerun a seed paper's experiments beside its printed figures")
-    p.add_argument("seed_id", choices=("000", "001", "003"))
-    p.add_argument("--json", action="store_true", help="print rows as JSON")
-    p.add_argument("--plot-dir", default=None, help="write one PNG per experiment here")
-    p.add_argument("--quick", action="store_true", help="shorter runs (for smoke tests)")
-    p.add_argument("--seeds", default=None, help="seeds A:B of the experiment table (003 only; default 0:10)")
-    p.set_defaults(func=_cmd_paper)
-    return parser
-
-
-def expected_failure(exc: BaseException) -> str | None:
-    """The one-line message of an expected failure (bad input, I/O, a corrupt file), or
-    None for anything else (a bug: its traceback is kept). Messages name the file and the
-    reason, never the file's contents."""
-    import sqlite3
-    import zipfile
-
-    if isinstance(exc, NavsimError):
-        return str(exc)
-    if isinstance(exc, UnicodeDecodeError):
-        return f"a file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
-    if isinstance(exc, OSError):
-        where = f": {Path(exc.filename).name}" if getattr(exc, "filename", None) else ""
-        return f"{exc.strerror or type(exc).__name__}{where}"
-    if isinstance(exc, sqlite3.DatabaseError):
-        return f"a database cannot be used ({exc})"
-    if isinstance(exc, (zipfile.BadZipFile, EOFError)):
-        return f"a file is truncated or not the expected archive ({type(exc).__name__})"
-    if isinstance(exc, MemoryError):
-        return "not enough memory for these settings (fewer steps per chunk, a longer IMU period or a shorter episode)"
-    return None
-
-
-def main(argv: list[str] | None = None) -> int:
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:  # --help, --version, or a bad argument (one line, status 2)
-        return exc.code if isinstance(exc.code, int) else 2
-    try:
-        return args.func(args)
-    except KeyboardInterrupt:
-        print("navsim: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:
-        message = expected_failure(exc)
-        if message is None:
-            raise
-        print(f"navsim: error: {' '.join(message.split())}", file=sys.stderr)
-        return 2
-
-

@@ -1,0 +1,52 @@
+"""The entry point :func:`main` and the one-line messages of expected failures
+(:func:`expected_failure`: bad input, I/O, a corrupt file; exit status 2).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import NavsimError
+from .parser import build_parser
+
+
+def expected_failure(exc: BaseException) -> str | None:
+    """The one-line message of an expected failure (bad input, I/O, a corrupt file), or
+    None for anything else (a bug: its traceback is kept). Messages name the file and the
+    reason, never the file's contents."""
+    import sqlite3
+    import zipfile
+
+    if isinstance(exc, NavsimError):
+        return str(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return f"a file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})"
+    if isinstance(exc, OSError):
+        where = f": {Path(exc.filename).name}" if getattr(exc, "filename", None) else ""
+        return f"{exc.strerror or type(exc).__name__}{where}"
+    if isinstance(exc, sqlite3.DatabaseError):
+        return f"a database cannot be used ({exc})"
+    if isinstance(exc, (zipfile.BadZipFile, EOFError)):
+        return f"a file is truncated or not the expected archive ({type(exc).__name__})"
+    if isinstance(exc, MemoryError):
+        return "not enough memory for these settings (fewer steps per chunk, a longer IMU period or a shorter episode)"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a bad argument (one line, status 2)
+        return exc.code if isinstance(exc.code, int) else 2
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("navsim: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        message = expected_failure(exc)
+        if message is None:
+            raise
+        print(f"navsim: error: {' '.join(message.split())}", file=sys.stderr)
+        return 2
