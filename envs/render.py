@@ -428,7 +428,8 @@ def navigation_view(env) -> FrameView:
             lat, lon = np.array([row[0]]), np.array([row[1]])
         return FrameView(t_s=k * dt, duration_s=duration, truth_lat=lat, truth_lon=lon,
                          status="" if tape is not None else "score=False: no episode tape, current position only")
-    return tape_view(tape, k, tape.actions, env.action_scale, dt, duration, env.scenario.timing.gnss_period_s)  # actions are normalised
+    # the actions are normalised
+    return tape_view(tape, k, tape.actions, env.action_scale, dt, duration, env.scenario.timing.gnss_period_s)
 
 
 def view_of(env) -> FrameView:

@@ -185,7 +185,7 @@ def model_description_xml(kind: str, table: list[Var], fmi: int, *, model_name: 
     if fmi == 2:
         index = 0
         for var in table:
-            for j, name in enumerate(scalar_names(var)):
+            for name in scalar_names(var):
                 index += 1
                 a = {"name": name, "valueReference": str(index - 1), "description": var.description,
                      "causality": var.causality, "variability": var.variability}

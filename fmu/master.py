@@ -87,11 +87,16 @@ class FmuInstance:
 
         identifier = self.md.coSimulation.modelIdentifier
         if self.fmi == 2:
-            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                                   fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
             from ctypes import byref
 
             from fmpy.fmi1 import calloc, free
+            from fmpy.fmi2 import (
+                FMU2Slave,
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
 
             self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir, modelIdentifier=identifier,
                                  instanceName=self.name)

@@ -76,7 +76,7 @@ def check_positive(field: str, value: float) -> float:
     return number
 
 
-def check_nonnegative(field: str, value) -> float:
+def check_nonnegative(field: str, value: float) -> float:
     """Return ``float(value)`` if it is finite and >= 0, else raise :class:`ConfigError`."""
     try:
         number = float(value)

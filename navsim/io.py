@@ -52,7 +52,8 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "check_output_dir", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
+__all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "check_output_dir", "STEP_KEYS",
+           "GNSS_KEYS", "ODOMETER_KEYS"]
 
 STEP_KEYS = (
     "t", "s", "speed", "accel_along", "lat", "lon", "h", "velocity_n", "heading", "pitch", "roll",

@@ -41,7 +41,6 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .errors import ConfigError
-from .provenance import provenance, provenance_line
 from .metrics import (
     SCORE_FIELDS,
     EpisodeScore,
@@ -54,6 +53,7 @@ from .metrics import (
     nees_series,
     score_episode,
 )
+from .provenance import provenance, provenance_line
 
 __all__ = [
     "add_run_parser",
@@ -579,7 +579,8 @@ def add_bench_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``navsim bench`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("bench", help="every estimator on every seed, compared")
     _common(p)
-    p.add_argument("--estimators", required=True, metavar="A,B,C", help="comma-separated estimator names or import paths package.module:Factory")
+    p.add_argument("--estimators", required=True, metavar="A,B,C",
+                   help="comma-separated estimator names or import paths package.module:Factory")
     p.add_argument("--seeds", default="0:10", metavar="A:B",
                    help="seeds A..B-1 (default 0:10), or A:B:STEP, or a comma list")
     p.add_argument("--option", action="append", default=[], metavar="[EST.]KEY=VALUE",

@@ -490,7 +490,8 @@ class BatchObservations:
             self._sat_pos = np.broadcast_to(g.sat_pos_e[0].reshape(e, 1, -1), (e, n_env, 3 * k))
             self._sat_vel = np.broadcast_to(g.sat_vel_e[0].reshape(e, 1, -1), (e, n_env, 3 * k))
         else:
-            self._valid = self._pr = self._prr = self._sat_pos = self._sat_vel = None
+            none = _frozen(np.zeros(0))  # never read: no step of the chunk has an epoch
+            self._valid = self._pr = self._prr = self._sat_pos = self._sat_vel = none
 
     def __call__(self, i: int) -> dict[str, np.ndarray]:
         j = self._epoch_at[i]

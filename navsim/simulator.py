@@ -61,8 +61,8 @@ from .truthgen import TruthGenerator
 from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
 from .validation import check_seed, check_steps, validate_scenario
 
-__all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track", "build_profile",
-           "build_imu_model", "build_gnss", "build_gnss_error_model"]
+__all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track",
+           "build_profile", "build_imu_model", "build_gnss", "build_gnss_error_model"]
 
 STREAMS = ("motion", "imu", "gnss", "outages", "initial_error", "odometer", "baro")
 """Names of the child random streams, in spawn order (never reorder: it changes numbers)."""
@@ -137,10 +137,10 @@ class Chunk:
     t: np.ndarray
     truth: TrueState
     imu: ImuBlock
-    gnss: object | None
+    gnss: gnss_mod.GnssEpochs | None
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
-    odometer: object | None = None
+    odometer: odometer_mod.OdometerOutput | None = None
     baro: baro_mod.BaroOutput | None = None
 
     def __len__(self) -> int:
@@ -172,10 +172,10 @@ class ChunkBatch:
     t: np.ndarray
     truth: TrueState
     imu: ImuBlock
-    gnss: object | None
+    gnss: gnss_mod.GnssEpochs | None
     gnss_step: np.ndarray
     receiver_outage: np.ndarray
-    odometer: object | None = None
+    odometer: odometer_mod.OdometerOutput | None = None
     baro: baro_mod.BaroOutput | None = None
 
     def __len__(self) -> int:

@@ -355,7 +355,8 @@ def track_from_waypoints(wp: Waypoints, *, earth: EarthModel | None = None, smoo
     for i, g in enumerate(wp.segments):
         where = f"segments[{i}]"
         if not isinstance(g, dict):
-            raise ConfigError(where, "an object with kind and s_start_m/s_end_m or start_index/end_index", file_value(g), wp.source)
+            raise ConfigError(where, "an object with kind and s_start_m/s_end_m or start_index/end_index", file_value(g),
+                              wp.source)
         kind = g.get("kind")
         if not isinstance(kind, str) or not kind:
             raise ConfigError(where + ".kind", "a non-empty string", file_value(kind), wp.source)

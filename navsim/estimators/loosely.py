@@ -141,8 +141,8 @@ from ..errors import ConfigError
 from ..receiver import least_squares_fix, velocity_fix
 from ..rotations import mat_nb_from_hpr, quat_to_mat
 from ._inserror import (
-    NAV,
     N_STATES,
+    NAV,
     AuxStateIns,
     ErrorStateIns,
     ImuNoise,
@@ -160,8 +160,9 @@ __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_m
 # GPS constellation with a 10 deg mask at the sites of mountain-railway (47 deg N) and
 # paper-2012, measured with the fixes themselves (tests/estimators/test_loosely.py
 # recomputes them): ionosphere (thin-shell obliquity) 0.07 E / 0.13 N / 1.95 U,
-# troposphere (DO-229 mapping) 0.27-0.28 E / 0.46-0.51 N / 3.55 U; rounded up. The vertical error is positive (the fix goes up: the clock absorbs the common
-# part, the excess delay of the low satellites pushes the fix away from them).
+# troposphere (DO-229 mapping) 0.27-0.28 E / 0.46-0.51 N / 3.55 U; rounded up. The vertical
+# error is positive (the fix goes up: the clock absorbs the common part, the excess delay of
+# the low satellites pushes the fix away from them).
 FIX_ZENITH_FACTORS = {"ionosphere": (0.15, 2.0), "troposphere": (0.55, 3.6)}
 
 

@@ -79,7 +79,7 @@ import os
 import numpy as np
 
 from ..rotations import quat_from_rotvec, quat_multiply, quat_to_rotvec
-from ..strapdown import CONING, SCULLING, POSITION
+from ..strapdown import CONING, POSITION, SCULLING
 from ..strapdown.coning import CONING_INPUTS
 from ..strapdown.motion_models import (
     Motion,

@@ -395,7 +395,7 @@ def visibility_batch(
     tunnels = set(model.tunnel_kinds)
     relative = azimuth - heading[:, None]
     for segment in segments:
-        kind = getattr(segment, "kind")
+        kind = segment.kind
         if kind not in tunnels and kind not in canyons:
             continue
         inside = (s >= float(segment.s_start)) & (s < float(segment.s_end))

@@ -495,7 +495,7 @@ class PaperEkf(NoiseScalable):
         stage_c = self._stage_c
         kphi_c = self._kphi_c
         sin, cos, sqrt = math.sin, math.cos, math.sqrt
-        biases, clock = self._biases, self._clock
+        biases = self._biases
         ia, ig = self._i_ba, self._i_bg
         zeros = [0.0] * n
         obj = self
