@@ -69,6 +69,7 @@ def cmd_simulate(args) -> int:
             yield chunk
 
     n_sats = len(sim.constellation.prn)
+    paths: tuple[Path, ...]
     if fmt == "csv":
         paths = write_csv(out, chunks(), n_sats=n_sats)
     else:
