@@ -54,6 +54,7 @@ if __name__ == "__main__":
     ap.add_argument("--shaping", type=float, default=20.0, help="progress_shaping of the training envs, per km")
     ap.add_argument("--braking-shaping", type=float, default=2.0, help="braking_shaping of the training envs, per m/s")
     ap.add_argument("--lr", type=float, default=3e-4)
+    ap.add_argument("--log-std-init", type=float, default=0.0, help="initial log std of the Gaussian policy")
     ap.add_argument("--figure", default="demo_ppo_driving.png", help="file name in results/, or 'none'")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
@@ -61,7 +62,7 @@ if __name__ == "__main__":
     seeds = range(1000, 1000 + (2 if args.quick else args.seeds))
     policy, stats = train("navsim/TrainDriving-v0", LINE, steps, args.envs, n_steps=args.n_steps,
                           train_kwargs={"progress_shaping": args.shaping, "braking_shaping": args.braking_shaping},
-                          ppo_kwargs={"learning_rate": args.lr})
+                          ppo_kwargs={"learning_rate": args.lr}, policy_kwargs={"log_std_init": args.log_std_init})
     policies = {"PPO (trained)": policy,
                 "constant command u = 0.3": lambda obs: np.array([0.3], np.float32),
                 "full traction u = 1": lambda obs: np.array([1.0], np.float32),
@@ -71,4 +72,4 @@ if __name__ == "__main__":
            ["constant command u = 0.3", "full traction u = 1", "braking-curve driver (reference)"], extra=note,
            figure=None if args.quick or args.figure == "none" else args.figure,
            train_note=f"; training with progress_shaping={args.shaping:g}, braking_shaping={args.braking_shaping:g}, "
-                      f"learning rate {args.lr:g}")
+                      f"learning rate {args.lr:g}, initial log std {args.log_std_init:g}")
