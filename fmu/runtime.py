@@ -284,6 +284,7 @@ class ValueStore:
 
 
 _NP = {"real": float, "int": np.int64, "bool": bool, "string": object}
+_NAN9, _NAN81 = [math.nan] * 9, [math.nan] * 81
 
 
 def _zero(type_: str):
@@ -624,10 +625,10 @@ class EstimatorRuntime(_RuntimeBase):
         orders = range(1, self.dims.orders + 1)
         self._read_imu = self.store.block_reader([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
                                                  + ["imu.dtheta_sub", "imu.dv_sub"])
-        self._write_solution = self.store.block_writer(
-            ["nav.lat_rad", "nav.lon_rad", "nav.h_m", "nav.velocity_n", "nav.heading_rad", "nav.pitch_rad",
-             "nav.roll_rad", "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n", "nav.covariance",
-             "nav.nis"])
+        self._write_solution = self.store.block_writer(  # consecutive: one slice under FMI 2
+            ["nav.t_s", "nav.step", "nav.lag_steps", "nav.lat_rad", "nav.lon_rad", "nav.h_m", "nav.velocity_n",
+             "nav.heading_rad", "nav.pitch_rad", "nav.roll_rad", "nav.sigma_position_n", "nav.sigma_velocity_n",
+             "nav.sigma_attitude_n", "nav.covariance", "nav.nis", "nav.nis_dof"])
         self._info(self.base_scenario)
 
     def exit_initialization_mode(self) -> None:
@@ -756,12 +757,13 @@ class EstimatorRuntime(_RuntimeBase):
                 raise FmuError(f"estimator {self.meta.get('estimator', '')!r} refused the data of plant step {c} "
                                f"(navigation step {k} x {self.timing.nav_period_s!r} s): {exc}") from None
             self.processed = c
-            self._write_estimate(est, c * self.timing.nav_period_s)
+            self._write_estimate(est, c * self.timing.nav_period_s, self.tick + n)
         elif not self.started:
-            self._write_estimate(self._prior(), 0.0)
+            self._write_estimate(self._prior(), 0.0, self.tick + n)
+        else:
+            self.store.write("nav.lag_steps", (self.tick + n) // self.nav_ticks - self.processed)
         self.lagged, self.span = self._lagged_next, self._span_next
         self.tick += n
-        self.store.write("nav.lag_steps", self.tick // self.nav_ticks - self.processed)
 
     def _prior(self):
         from navsim.simulator import Prior
@@ -795,17 +797,21 @@ class EstimatorRuntime(_RuntimeBase):
             gnss=gnss, odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None,
             baro_alt_m=float(read("baro.altitude_m")) if self.dims.baro else None)
 
-    def _write_estimate(self, est, t_s: float) -> None:
-        w = self.store.write
-        w("nav.t_s", t_s)
-        w("nav.step", self.processed)
-        cov = np.full((9, 9), np.nan) if est.covariance is None else np.asarray(est.covariance, dtype=float)
+    def _write_estimate(self, est, t_s: float, tick: int) -> None:
+        """Write the solution, its time, step and lag at FMU time ``tick`` in one block."""
+        cov = est.covariance
+        if cov is None:
+            flat, sigma = _NAN81, _NAN9
+        else:  # standard deviations from the diagonal, every 10th element of the row-major 9 x 9
+            flat = np.asarray(cov, dtype=float).ravel().tolist()
+            sigma = [math.sqrt(abs(flat[i])) for i in range(0, 81, 10)]
         nis = getattr(est, "nis", None)
-        self._write_solution([float(est.lat), float(est.lon), float(est.h),
-                              *np.asarray(est.velocity_n, dtype=float).tolist(), float(est.heading), float(est.pitch),
-                              float(est.roll), *np.sqrt(np.abs(np.diag(cov))).tolist(), *cov.ravel().tolist(),
-                              math.nan if nis is None else float(nis)])
-        w("nav.nis_dof", int(est.nis_dof or 0) if nis is not None else 0)
+        v = est.velocity_n
+        vel = v.tolist() if type(v) is np.ndarray else [float(x) for x in v]
+        self._write_solution([t_s, self.processed, tick // self.nav_ticks - self.processed, float(est.lat),
+                              float(est.lon), float(est.h), *vel, float(est.heading), float(est.pitch),
+                              float(est.roll), *sigma, *flat, math.nan if nis is None else float(nis),
+                              int(est.nis_dof or 0) if nis is not None else 0])
 
 
 # Exit of a non-Python host. pythonfmu's shim starts Python itself when the host has none
