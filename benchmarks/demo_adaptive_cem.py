@@ -4,8 +4,9 @@ No deep-learning library: the policy is ``a = tanh(W x + b)`` (2 x 9 weights and
 biases) on the env's observation x, and the cross-entropy method [1] searches its 20
 parameters: sample a population around the mean, keep the elite by mean episode return
 over the training seeds, refit mean and spread. It starts at zero, which is the untuned
-filter (a = 0: Q and R as nominal), so whatever it finds is measured against the
-untuned filter on held-out seeds it never saw.
+filter (a = 0: the env's untuned filter, mis-tuned on purpose, R x 10 by default; see
+:mod:`navsim.envs.adaptive`), so whatever it finds is measured against the untuned
+filter on held-out seeds it never saw.
 
 Usage: ``python benchmarks/demo_adaptive_cem.py [--scenario urban-road] [--duration 200]
 [--iterations 4] [--population 8]``; prints the training curve and a held-out table.
