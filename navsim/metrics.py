@@ -41,9 +41,35 @@ Consistency
     the normalised figure ``sum NIS / sum dof`` (1 when consistent) gets exact bounds.
     Across seeds, :func:`monte_carlo_nees` gives the classic Monte Carlo ANEES per step
     with bounds ``chi2(M d) / M``.
-Divergence
-    horizontal error above a threshold (default 1000 m) at any step, or a non-finite
-    position estimate at any step.
+Divergence (filter-independent, :func:`detect_divergence`)
+    An episode counts as diverged when any of three checks fires, each on the estimate
+    and its claimed covariance only (never on the estimator's own flags):
+
+    1. *non-finite estimate*: a non-finite position at any step, or a non-finite velocity
+       or attitude at a step while that quantity is finite at other steps (an estimator
+       that never reports a velocity or an attitude is not penalised for it);
+    2. *horizontal threshold*: ``hypot(dE, dN)`` above ``divergence_threshold_m``
+       (default 1000 m) at any step;
+    3. *error far outside the claimed covariance for a sustained time*: the per-step NEES
+       on the claimed subspace (dimension d, see Consistency) above the ``q`` quantile of
+       chi2(d) (default q = 0.9999: 33.7 for d = 9, 25.7 for d = 5, 18.4 for d = 2) at
+       no less than 80 % of the steps of some window of ``divergence_nees_window_s``
+       (default 20 s). A consistent filter exceeds that quantile at a step with
+       probability 1e-4; to do so at 80 % of a 20-s window the error must stay beyond it
+       through many correlation times, which a consistent filter essentially never does.
+       The 20 % allowance keeps dips from splitting a sustained excess (with a covariance
+       100 times too small the NEES still falls below the quantile at 8.8 % of the steps
+       for d = 2, 0.16 % for d = 5), and a single spike never fills a window. Episodes
+       shorter than the window are not checked.
+
+    ``diverged_at_s`` is the earliest time any check fires (for check 3 the first step
+    of the sustained run) and ``divergence_reason`` says which checks fired, when and
+    with what value. The accuracy figures of a diverged episode (every horizontal,
+    vertical, along/cross-track, velocity, attitude, heading and outage-drift figure,
+    and the per-outage drifts) are NaN: never a figure computed from the finite or the
+    pre-divergence fraction of the episode. The consistency figures (NEES, NIS) stay,
+    since they document the divergence, except when the estimate is non-finite (check
+    1), where they too would come from the finite fraction and are NaN.
 CPU
     mean ``estimator.step`` CPU time per step, microseconds (with a batch fast path the
     chunk time divided by its steps, see :func:`navsim.episode.run_episode`).
@@ -98,6 +124,9 @@ __all__ = [
     "EpisodeScore",
     "SCORE_FIELDS",
     "score_episode",
+    "Divergence",
+    "detect_divergence",
+    "ACCURACY_FIELDS",
     "MetricSummary",
     "aggregate",
     "McNees",
@@ -578,8 +607,10 @@ SCORE_FIELDS.update({
     "nis_normalised_lower": ("", "95 % lower bound of nis_normalised"),
     "nis_normalised_upper": ("", "95 % upper bound of nis_normalised"),
     "nis_in_bounds_fraction": ("", "updates with NIS in the 95 % chi2(dof) interval"),
-    "diverged": ("", "horizontal error above the threshold or a non-finite estimate"),
+    "diverged": ("", "non-finite estimate, horizontal error above the threshold, or NEES above the chi2 "
+                     "0.9999 quantile for a sustained time (accuracy figures are then NaN)"),
     "diverged_at_s": ("s", "first time of divergence"),
+    "divergence_reason": ("", "which divergence checks fired, when and with what value (empty if none)"),
     "divergence_threshold_m": ("m", "horizontal error threshold of the divergence flag"),
     "step_time_us": ("us", "estimator CPU time per navigation step, mean"),
     "cpu_total_s": ("s", "estimator CPU time, total"),
@@ -660,6 +691,7 @@ class EpisodeScore:
     nis_in_bounds_fraction: float
     diverged: bool
     diverged_at_s: float
+    divergence_reason: str
     divergence_threshold_m: float
     step_time_us: float
     cpu_total_s: float
@@ -680,8 +712,111 @@ class EpisodeScore:
         return {name: text for name, (_, text) in SCORE_FIELDS.items()}
 
 
+# Fields that measure the accuracy of the estimate: NaN for a diverged episode.
+ACCURACY_FIELDS: tuple[str, ...] = tuple(
+    name for name in SCORE_FIELDS
+    if name.startswith(("horizontal_", "vertical_", "along_track_", "cross_track_", "velocity_", "attitude_",
+                        "heading_", "outage_max_drift", "outage_rms_drift")))
+# Consistency figures: NaN as well when the estimate is non-finite somewhere.
+_CONSISTENCY_FIELDS = ("anees", "anees_lower", "anees_upper", "nees_n_eff", "nees_in_bounds_fraction", "anis",
+                       "nis_mean_dof", "nis_normalised", "nis_normalised_lower", "nis_normalised_upper",
+                       "nis_in_bounds_fraction")
+
+DIVERGENCE_NEES_QUANTILE = 0.9999
+"""Per-step chi2(d) quantile above which the NEES counts as far outside the covariance."""
+DIVERGENCE_NEES_WINDOW_S = 20.0
+"""Window (s) in which the NEES must stay above that quantile for the episode to count as diverged."""
+_NEES_WINDOW_FRACTION = 0.8  # ... at no less than this fraction of the window's steps
+
+
+@dataclass(frozen=True, slots=True)
+class Divergence:
+    """Result of :func:`detect_divergence`.
+
+    diverged : any check fired. at_s : earliest time a check fired, s (nan if none).
+    reason : the checks that fired, ``"; "``-separated ("" if none). non_finite : check 1
+    (non-finite estimate) fired.
+    """
+
+    diverged: bool
+    at_s: float
+    reason: str
+    non_finite: bool
+
+
+def detect_divergence(t: np.ndarray, estimate: Mapping[str, np.ndarray], horizontal_m: np.ndarray,
+                      nees_per_step: np.ndarray | None = None, nees_dof: int = 0, *, dt: float | None = None,
+                      threshold_m: float = 1000.0, nees_quantile: float = DIVERGENCE_NEES_QUANTILE,
+                      nees_window_s: float = DIVERGENCE_NEES_WINDOW_S) -> Divergence:
+    """The filter-independent divergence checks of the module docstring (checks 1-3).
+
+    Parameters
+    ----------
+    t : (n,) step end times, s.
+    estimate : ``{"position": (n, 3), "velocity": (n, 3), "attitude": (n, 3)}`` (any
+        subset; position is checked at every step, the others only where they are given
+        at some step).
+    horizontal_m : (n,) horizontal error, m.
+    nees_per_step, nees_dof : per-step NEES on the claimed subspace and its dimension d
+        (None / 0: check 3 skipped).
+    dt : step length, s (default: the median spacing of ``t``); the window of check 3
+        holds ``round(nees_window_s / dt)`` steps.
+    threshold_m : horizontal threshold of check 2, m (> 0).
+    nees_quantile : q of check 3, in (0, 1). nees_window_s : its window, s (> 0).
+    """
+    if not threshold_m > 0:
+        raise ConfigError("divergence_threshold_m", "a positive number", threshold_m)
+    if not 0.0 < nees_quantile < 1.0:
+        raise ConfigError("divergence_nees_quantile", "a probability in (0, 1)", nees_quantile)
+    if not nees_window_s > 0:
+        raise ConfigError("divergence_nees_window_s", "a positive number of seconds", nees_window_s)
+    t = np.asarray(t, dtype=float)
+    n = len(t)
+    if n == 0:
+        return Divergence(False, math.nan, "", False)
+    if dt is None:
+        dt = float(np.median(np.diff(t))) if n > 1 else 0.0
+    found: list[tuple[float, str]] = []
+    non_finite = False
+    for key in ("position", "velocity", "attitude"):
+        x = estimate.get(key)
+        if x is None:
+            continue
+        ok = np.all(np.isfinite(np.asarray(x, dtype=float).reshape(n, -1)), axis=1)
+        if ok.all() or (key != "position" and not ok.any()):
+            continue
+        non_finite = True
+        k = int(np.argmin(ok))
+        found.append((float(t[k]), f"non-finite {key} estimate at {t[k]:.6g} s ({int((~ok).sum())} of {n} steps)"))
+    h = np.asarray(horizontal_m, dtype=float)
+    above = np.nan_to_num(h, nan=0.0) > threshold_m
+    if above.any():
+        k = int(np.argmax(above))
+        found.append((float(t[k]), f"horizontal error {h[k]:.4g} m > {threshold_m:g} m at {t[k]:.6g} s"))
+    if nees_per_step is not None and nees_dof >= 1:
+        x = np.asarray(nees_per_step, dtype=float)
+        limit = float(stats.chi2.ppf(nees_quantile, nees_dof))
+        over = np.nan_to_num(x, nan=0.0) > limit
+        m = int(round(nees_window_s / dt)) if dt > 0 else n + 1
+        if 1 <= m <= n and over.any():
+            count = np.convolve(over.astype(np.int64), np.ones(m, dtype=np.int64), mode="valid")  # per window start
+            hit = np.flatnonzero(count >= math.ceil(_NEES_WINDOW_FRACTION * m))
+            if hit.size:
+                k0 = int(hit[0])
+                a = k0 + int(np.argmax(over[k0:k0 + m]))  # first step above the limit in that window
+                found.append((float(t[a]), f"NEES > {limit:.4g} (chi2({nees_dof}) {nees_quantile:g} quantile) at "
+                              f"{int(count[k0])} of the {m} steps of the {nees_window_s:g}-s window from {t[k0]:.6g} s "
+                              f"(max there {x[k0:k0 + m].max():.4g})"))
+    if not found:
+        return Divergence(False, math.nan, "", False)
+    found.sort(key=lambda r: r[0])
+    return Divergence(True, found[0][0], "; ".join(r for _, r in found), non_finite)
+
+
 def score_episode(record, *, track=None, series: ErrorSeries | None = None,
-                  divergence_threshold_m: float = 1000.0, min_satellites: int = MIN_SATELLITES) -> EpisodeScore:
+                  divergence_threshold_m: float = 1000.0, min_satellites: int = MIN_SATELLITES,
+                  divergence_nees_quantile: float = DIVERGENCE_NEES_QUANTILE,
+                  divergence_nees_window_s: float = DIVERGENCE_NEES_WINDOW_S) -> EpisodeScore:
     """Score one :class:`~navsim.episode.EpisodeRecord` (see the module docstring).
 
     Parameters
@@ -689,7 +824,12 @@ def score_episode(record, *, track=None, series: ErrorSeries | None = None,
     record : EpisodeRecord
     track : the scenario's track (built from ``record.scenario`` when omitted).
     series : precomputed :func:`error_series` of the record (saves recomputing it).
-    divergence_threshold_m : horizontal error above which the episode counts as diverged.
+    divergence_threshold_m : horizontal error above which the episode counts as diverged, m.
+    divergence_nees_quantile, divergence_nees_window_s : the NEES check of
+        :func:`detect_divergence` (chi2 quantile, window in s).
+
+    A diverged episode (:func:`detect_divergence`) has NaN accuracy figures
+    (:data:`ACCURACY_FIELDS`) and its reason in ``divergence_reason``.
     """
     if not divergence_threshold_m > 0:
         raise ConfigError("divergence_threshold_m", "a positive number", divergence_threshold_m)
@@ -709,11 +849,14 @@ def score_episode(record, *, track=None, series: ErrorSeries | None = None,
     ns = nees_summary(s.error, record.est_cov)
     nis = nis_summary(record.nis, record.nis_dof)
     position = np.column_stack([record.est_lat, record.est_lon, record.est_h])
-    bad = ~np.all(np.isfinite(position), axis=1) | (np.nan_to_num(s.horizontal_m, nan=0.0) > divergence_threshold_m)
+    div = detect_divergence(
+        t, {"position": position, "velocity": record.est_velocity_n, "attitude": record.est_hpr}, s.horizontal_m,
+        ns.series if ns else None, ns.dof if ns else 0, dt=dt, threshold_m=divergence_threshold_m,
+        nees_quantile=divergence_nees_quantile, nees_window_s=divergence_nees_window_s)
     cpu = np.asarray(record.step_time_s, dtype=float)
     cpu_total = float(cpu.sum())
     nan = math.nan
-    return EpisodeScore(
+    fields = dict(
         scenario=record.scenario.name, estimator=record.estimator, seed=record.seed,
         duration_s=float(n * dt), steps=n,
         **_stats_fields("horizontal", h), **_stats_fields("vertical", v),
@@ -732,12 +875,19 @@ def score_episode(record, *, track=None, series: ErrorSeries | None = None,
         nis_mean_dof=nis.mean_dof if nis else nan, nis_normalised=nis.normalised if nis else nan,
         nis_normalised_lower=nis.lower if nis else nan, nis_normalised_upper=nis.upper if nis else nan,
         nis_in_bounds_fraction=nis.in_bounds_fraction if nis else nan,
-        diverged=bool(bad.any()), diverged_at_s=float(t[np.argmax(bad)]) if bad.any() else nan,
+        diverged=div.diverged, diverged_at_s=div.at_s, divergence_reason=div.reason,
         divergence_threshold_m=float(divergence_threshold_m),
         step_time_us=float(cpu.mean() * 1e6) if n else nan, cpu_total_s=cpu_total,
         realtime_factor=float(n * dt / cpu_total) if cpu_total > 0 else nan,
         outages=outages,
     )
+    if div.diverged:  # never a figure computed from the finite / pre-divergence fraction
+        fields.update(dict.fromkeys(ACCURACY_FIELDS, nan))
+        fields["outages"] = tuple(dataclasses.replace(o, max_drift_m=nan, max_vertical_m=nan, t_max=nan)
+                                  for o in outages)
+        if div.non_finite:
+            fields.update(dict.fromkeys(_CONSISTENCY_FIELDS, nan))
+    return EpisodeScore(**fields)
 
 
 def _stats_fields(prefix: str, st: ErrorStats) -> dict:
@@ -765,7 +915,8 @@ class MetricSummary:
 
 
 NUMERIC_FIELDS: tuple[str, ...] = tuple(
-    name for name in SCORE_FIELDS if name not in ("scenario", "estimator", "seed", "nees_components"))
+    name for name in SCORE_FIELDS
+    if name not in ("scenario", "estimator", "seed", "nees_components", "divergence_reason"))
 
 
 def _summary_of(name: str, unit: str, values: np.ndarray, method: str, confidence: float) -> MetricSummary:

@@ -90,11 +90,7 @@ def plot_episode(data, path: str | Path, title: str = "", max_points: int = 20_0
     ax.set_ylabel("valid satellites")
     ax.set_title("GNSS availability (red: outage)")
     fig.suptitle(title)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, plt, path)
 
 
 # ============================================================================ estimator errors
@@ -160,11 +156,13 @@ def plot_errors(series, path: str | Path, *, outages=(), title: str = "", max_po
 
 
 def _save(fig, plt, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    """Save atomically (a temporary file beside ``path`` renamed into place) and close."""
+    from .io import save_figure
+
+    try:
+        return save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 # ============================================================================ benchmarks
@@ -178,7 +176,9 @@ def plot_bench_errors(samples: dict, per_seed: dict, path: str | Path, title: st
 
     samples[name] : horizontal errors pooled over the seeds (m), drawn as empirical
     CDFs; per_seed[name] : the :class:`navsim.metrics.EpisodeScore` of each seed, whose
-    horizontal RMSE and outage RMS drift are drawn as box plots.
+    horizontal RMSE and outage RMS drift are drawn as box plots. A diverged run's figures
+    are NaN (:func:`navsim.metrics.detect_divergence`): it is left out of the boxes and
+    counted in the estimator's label ("name (k diverged)").
     """
     plt = _pyplot()
     names = list(samples)
@@ -204,9 +204,11 @@ def plot_bench_errors(samples: dict, per_seed: dict, path: str | Path, title: st
                            (axes[2], "outage_rms_drift_m", "outage RMS drift per seed, m")):
         data = [_finite(getattr(s, key) for s in per_seed.get(n, [])) for n in names]
         keep = [(n, d) for n, d in zip(names, data) if d.size]
+        div = {n: sum(bool(getattr(s, "diverged", False)) for s in per_seed.get(n, [])) for n in names}
         if keep:
             ax.boxplot([d for _, d in keep], showmeans=True)
-            ax.set_xticks(range(1, len(keep) + 1), [n for n, _ in keep], rotation=30, ha="right")
+            ax.set_xticks(range(1, len(keep) + 1), [f"{n} ({div[n]} diverged)" if div[n] else n for n, _ in keep],
+                          rotation=30, ha="right")
             allv = np.concatenate([d for _, d in keep])
             if allv.min() > 0 and allv.max() > 100 * allv.min():
                 ax.set_yscale("log")

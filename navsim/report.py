@@ -67,6 +67,8 @@ __all__ = [
     "BenchResult",
     "bench",
     "format_score_table",
+    "divergence_text",
+    "diverged_counts",
     "bench_markdown",
     "bench_summary_csv",
     "bench_runs_csv",
@@ -304,7 +306,8 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
                     progress(steps - done[0])
                 continue
             result.scores.setdefault(name, {})[seed] = score
-            samples[name].append(series.horizontal_m[stride - 1::stride])
+            if not score.diverged:  # the pooled error distribution leaves diverged runs out, as the means do
+                samples[name].append(series.horizontal_m[stride - 1::stride])
             if record.est_cov is not None and score.nees_dof:
                 comps = nees_components(record.est_cov)
                 x, d = nees_series(series.error, record.est_cov, comps)
@@ -337,15 +340,30 @@ def _fmt(value, width: int = 0) -> str:
 def format_score_table(score: EpisodeScore) -> str:
     """The score as an aligned text table: figure, value, unit, description."""
     flat = score.to_flat_dict()
-    rows = [(name, _fmt(flat[name]), unit, text) for name, (unit, text) in SCORE_FIELDS.items()]
+    rows = [(name, _fmt(flat[name]), unit, text) for name, (unit, text) in SCORE_FIELDS.items()
+            if name != "divergence_reason"]
     w = [max(len(r[i]) for r in rows) for i in range(3)]
     lines = [f"{'figure'.ljust(w[0])}  {'value'.ljust(w[1])}  {'unit'.ljust(w[2])}  description"]
     lines += [f"{a.ljust(w[0])}  {b.ljust(w[1])}  {c.ljust(w[2])}  {d}" for a, b, c, d in rows]
+    if score.diverged:
+        lines.append(f"{divergence_text(score)}; the accuracy figures of a diverged episode are not given (-)")
     for i, o in enumerate(score.outages, 1):
         end = "" if o.closed else " (GNSS not back by the end)"
         lines.append(f"outage {i}: GNSS epochs {o.t_first:g}-{o.t_last:g} s ({o.n_epochs} epochs, {o.duration_s:g} s), "
                      f"max horizontal drift {_fmt(o.max_drift_m)} m at {o.t_max:.6g} s{end}")
     return "\n".join(lines)
+
+
+def divergence_text(score: EpisodeScore) -> str:
+    """``"diverged at 123.4 s (reason)"`` for a diverged episode, "" otherwise."""
+    if not score.diverged:
+        return ""
+    return f"diverged at {_fmt(score.diverged_at_s)} s ({score.divergence_reason})"
+
+
+def diverged_counts(result: "BenchResult") -> dict[str, int]:
+    """Per estimator, how many of its finished runs diverged."""
+    return {n: sum(bool(sc.diverged) for sc in result.scores.get(n, {}).values()) for n in result.estimators}
 
 
 def format_cell(s: MetricSummary) -> str:
@@ -367,7 +385,9 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
     units = EpisodeScore.units()
     lines = [f"# navsim bench: {result.scenario}", "",
              f"Seeds {_seed_text(result.seeds)} ({len(result.seeds)}); cells: mean across seeds "
-             f"[{100 * result.confidence:g} % {interval}]; 'diverged' is the fraction of runs.", ""]
+             f"[{100 * result.confidence:g} % {interval}]; 'diverged' is the fraction of runs. The accuracy "
+             "cells average only the runs that did not diverge (their figures are NaN, see "
+             "navsim.metrics.detect_divergence); the diverged runs are listed below the table.", ""]
     if result.provenance:
         lines += [f"Provenance: {provenance_line(result.provenance)}", ""]
     names = result.estimators
@@ -375,6 +395,9 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
     lines.append("|---|---|" + "---|" * len(names))
     runs = [str(len(result.scores.get(n, {}))) + "/" + str(len(result.seeds)) for n in names]
     lines.append("| runs finished | | " + " | ".join(runs) + " |")
+    div = diverged_counts(result)
+    lines.append("| diverged runs (left out of the accuracy cells) | | "
+                 + " | ".join(f"{div[n]}/{len(result.scores.get(n, {}))}" for n in names) + " |")
     for m in metrics:
         cells = [format_cell(result.summary[n][m]) for n in names]
         lines.append(f"| {m} | {units[m]} | " + " | ".join(cells) + " |")
@@ -384,6 +407,10 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
         for n, m in mc:
             lines.append(f"- {n}: d = {m.dof}, time-average {_fmt(m.anees)}, "
                          f"steps inside the bounds {_fmt(100 * m.in_bounds_fraction)} %")
+    diverged = [(n, seed, sc) for n in names for seed, sc in sorted(result.scores.get(n, {}).items()) if sc.diverged]
+    if diverged:
+        lines += ["", "Diverged runs:", ""]
+        lines += [f"- {n} seed {seed}: {divergence_text(sc)}" for n, seed, sc in diverged]
     if result.failures:
         lines += ["", "Failures:", ""]
         lines += [f"- {f['estimator']} seed {f['seed']}: {f['error']}" for f in result.failures]
@@ -519,8 +546,10 @@ def cmd_run(args) -> int:
     if args.plot:
         from .plots import plot_errors
 
-        path = plot_errors(series, args.plot, outages=score.outages,
-                           title=f"{name} on {scenario.name}, seed {args.seed}")
+        title = f"{name} on {scenario.name}, seed {args.seed}"
+        if score.diverged:
+            title += f" (diverged at {_fmt(score.diverged_at_s)} s)"
+        path = plot_errors(series, args.plot, outages=score.outages, title=title)
         print(f"plot: {path}", file=sys.stderr if args.json else sys.stdout)
     return 0
 

@@ -6,6 +6,7 @@ truth plus an error we choose, so every figure has a closed form.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -16,8 +17,10 @@ from scipy import stats
 from navsim.episode import EpisodeRecord
 from navsim.errors import ConfigError
 from navsim.metrics import (
+    ACCURACY_FIELDS,
     EpisodeScore,
     aggregate,
+    detect_divergence,
     error_series,
     error_stats,
     find_outages,
@@ -283,15 +286,110 @@ def test_divergence_by_threshold_and_by_nan(world):
     d = np.column_stack([np.where(t >= 30.0, 2000.0, 1.0), np.zeros((len(t), 2))])
     score = score_episode(make_record(world, d_enu=d), track=world["track"])
     assert score.diverged and score.diverged_at_s == pytest.approx(30.0)
+    assert score.divergence_reason.startswith("horizontal error 2000 m > 1000 m at 30 s")
     ok = score_episode(make_record(world, d_enu=d), track=world["track"], divergence_threshold_m=5000.0)
-    assert not ok.diverged and ok.diverged_at_s != ok.diverged_at_s
+    assert not ok.diverged and ok.diverged_at_s != ok.diverged_at_s and ok.divergence_reason == ""
+    # RMS of 1 m for 29.99 s and 2000 m for 30.01 s: the figure a non-diverged episode gets
+    assert ok.horizontal_rmse_m == pytest.approx(math.sqrt(np.mean(d[:, 0] ** 2)), rel=1e-6)
     lat = world["truth"].lat.copy()
     lat[-1] = np.nan
     nan_score = score_episode(make_record(world, est_lat=lat), track=world["track"])
     assert nan_score.diverged and nan_score.diverged_at_s == pytest.approx(60.0)
-    assert nan_score.horizontal_rmse_m < 1e-6 and nan_score.horizontal_final_m != nan_score.horizontal_final_m
+    assert "non-finite position estimate at 60 s (1 of 6000 steps)" in nan_score.divergence_reason
+    # never the figure of the finite fraction (which would be 0 m here)
+    assert math.isnan(nan_score.horizontal_rmse_m) and math.isnan(nan_score.horizontal_final_m)
     with pytest.raises(ConfigError):
         score_episode(make_record(world), track=world["track"], divergence_threshold_m=0.0)
+
+
+def _accuracy_all_nan(score) -> bool:
+    flat = score.to_flat_dict()
+    return all(flat[k] is None for k in ACCURACY_FIELDS) and all(
+        math.isnan(o.max_drift_m) for o in score.outages)
+
+
+def test_consistent_filter_is_not_diverged(world):
+    """White errors drawn from the claimed covariance: NEES ~ chi2(6) at every step, so the
+    per-step 0.9999 quantile (27.9) is exceeded at ~1e-4 of the steps and never at 80 %
+    of a 20-s window; the figures are those of the drawn errors."""
+    rec, _ = _gaussian_record(world)
+    score = score_episode(rec, track=world["track"])
+    assert not score.diverged and score.divergence_reason == "" and math.isnan(score.diverged_at_s)
+    series = error_series(rec, world["track"])
+    h = np.hypot(series.error[:, 0], series.error[:, 1])
+    assert score.horizontal_rmse_m == pytest.approx(math.sqrt(np.mean(h**2)), rel=1e-12)
+    assert math.isfinite(score.outage_rms_drift_m)
+    # twice the claimed sigma (NEES ~ 4 chi2(6), above 27.9 at 32 % of the steps): inconsistent, not diverged
+    assert not score_episode(_gaussian_record(world, inflate=2.0)[0], track=world["track"]).diverged
+
+
+def test_covariance_100_times_too_small_for_30_s_is_diverged(world):
+    """The same errors, the claimed covariance divided by 100 for 15 s < t <= 45 s: the NEES is
+    100 chi2(6) there, above 27.9 except at P(chi2(6) < 0.279) = 4e-4 of the steps, which
+    fills every 20-s window inside those 30 s; the accuracy figures become NaN."""
+    rec, _ = _gaussian_record(world)
+    t = world["t"]
+    claimed = rec.est_cov
+    cov = claimed.copy()
+    cov[(t > 15.0 + 1e-9) & (t <= 45.0 + 1e-9)] /= 100.0
+    rec = dataclasses.replace(rec, est_cov=cov)
+    score = score_episode(rec, track=world["track"])
+    assert score.diverged
+    assert 15.0 < score.diverged_at_s <= 15.0 + 5 * world["dt"]  # the first steps of the bad stretch
+    assert "NEES > 27.86 (chi2(6) 0.9999 quantile)" in score.divergence_reason
+    assert _accuracy_all_nan(score)
+    assert math.isfinite(score.anees) and score.anees > score.anees_upper  # consistency figures kept
+    # a 40-s window needs 32 s above the quantile: 30 s are not enough
+    assert not score_episode(rec, track=world["track"], divergence_nees_window_s=40.0).diverged
+    # 10 s of it do not fill 80 % of a 20-s window either
+    short = cov.copy()
+    short[t > 25.0 + 1e-9] = claimed[t > 25.0 + 1e-9]
+    assert not score_episode(dataclasses.replace(rec, est_cov=short), track=world["track"]).diverged
+
+
+def test_filter_that_blows_up(world):
+    """Horizontal error 10^((t - 0.005)/3) m (crosses 1000 m at t = 9.005 s, between two
+    steps), then no estimate at all (NaN) from 40 s: diverged at the step t = 9.01 s, both reasons given, and every
+    accuracy and consistency figure NaN (none from the finite first 40 s)."""
+    t = world["t"]
+    err = np.minimum(10.0 ** ((t - 0.005) / 3.0), 1e9)
+    d = np.column_stack([err, np.zeros((len(t), 2))])
+    lat = make_record(world, d_enu=d).est_lat.copy()
+    lat[t >= 40.0 - 1e-9] = np.nan
+    score = score_episode(make_record(world, d_enu=d, est_lat=lat), track=world["track"])  # no covariance
+    first = t[np.argmax(err > 1000.0)]
+    assert score.diverged and score.diverged_at_s == pytest.approx(9.01) and first == pytest.approx(9.01)
+    assert score.divergence_reason.startswith(f"horizontal error {err[np.argmax(err > 1000.0)]:.4g} m > 1000 m")
+    assert "; non-finite position estimate at 40 s (2001 of 6000 steps)" in score.divergence_reason
+    assert _accuracy_all_nan(score)
+    # with a (constant, few-metre) covariance the NEES check fires first, long before 1000 m,
+    # and the consistency figures are NaN too: they would come from the finite 40 s
+    with_cov = score_episode(make_record(world, d_enu=d, est_lat=lat, cov=_gaussian_record(world)[0].est_cov),
+                             track=world["track"])
+    assert with_cov.diverged_at_s < first and with_cov.divergence_reason.startswith("NEES > 27.86")
+    assert _accuracy_all_nan(with_cov) and math.isnan(with_cov.anees) and math.isnan(with_cov.nees_in_bounds_fraction)
+    # the bench means leave it out and say so through n
+    fine = score_episode(_gaussian_record(world)[0], track=world["track"])
+    agg = aggregate([fine, score])
+    assert agg["horizontal_rmse_m"].n == 1 and agg["horizontal_rmse_m"].mean == fine.horizontal_rmse_m
+    assert agg["diverged"].n == 2 and agg["diverged"].mean == 0.5
+
+
+def test_divergence_checks_on_partial_quantities():
+    """Check 1 on velocity / attitude only where they are reported at some step."""
+    t = np.arange(1, 101) * 0.1
+    pos = np.zeros((100, 3))
+    never = np.full((100, 3), np.nan)
+    h = np.zeros(100)
+    assert not detect_divergence(t, {"position": pos, "velocity": never, "attitude": never}, h).diverged
+    vel = np.zeros((100, 3))
+    vel[50:] = np.inf
+    div = detect_divergence(t, {"position": pos, "velocity": vel}, h)
+    assert div.diverged and div.non_finite and div.at_s == pytest.approx(5.1)
+    assert div.reason == "non-finite velocity estimate at 5.1 s (50 of 100 steps)"
+    for bad in ({"nees_quantile": 1.0}, {"nees_window_s": 0.0}, {"threshold_m": -1.0}):
+        with pytest.raises(ConfigError):
+            detect_divergence(t, {"position": pos}, h, **bad)
 
 
 def test_step_time_in_microseconds(world):

@@ -50,6 +50,7 @@ def _score_from_row(row: dict):
 
     flat = row["scores"]
     values = {k: (math.nan if flat.get(k) is None and k != "seed" else flat.get(k)) for k in SCORE_FIELDS}
+    values["divergence_reason"] = flat.get("divergence_reason") or ""  # absent from rows of older versions
     outages = tuple(Outage(**{k: (math.nan if v is None else v) for k, v in o.items()}) for o in row["outages"])
     return EpisodeScore(**values, outages=outages)
 
@@ -73,8 +74,10 @@ def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
                 continue
             label = labels[(r["estimator"], r["options"])]
             if r["status"] == "ok":
-                res.scores.setdefault(label, {})[r["seed"]] = _score_from_row(r)
-                samples[label].append(r["samples"])
+                score = _score_from_row(r)
+                res.scores.setdefault(label, {})[r["seed"]] = score
+                if not score.diverged:  # as navsim.report.bench: diverged runs are left out of the pooled errors
+                    samples[label].append(r["samples"])
             else:
                 res.failures.append({"estimator": label, "seed": r["seed"], "error": r["error"]})
         for n in names:
@@ -88,13 +91,16 @@ def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
 
 def _html_table(result, metrics: Sequence[str]) -> str:
     from ..metrics import EpisodeScore
-    from ..report import format_cell
+    from ..report import diverged_counts, format_cell
 
     units = EpisodeScore.units()
     names = result.estimators
     head = "".join(f"<th>{html.escape(n)}</th>" for n in names)
     rows = ["<tr><td>runs finished</td><td></td>" + "".join(
         f"<td>{len(result.scores.get(n, {}))}/{len(result.seeds)}</td>" for n in names) + "</tr>"]
+    div = diverged_counts(result)
+    rows.append("<tr><td>diverged runs (left out of the accuracy cells)</td><td></td>" + "".join(
+        f"<td>{div[n]}/{len(result.scores.get(n, {}))}</td>" for n in names) + "</tr>")
     for m in metrics:
         cells = "".join(f"<td>{html.escape(format_cell(result.summary[n][m]))}</td>" for n in names)
         rows.append(f"<tr><td>{html.escape(m)}</td><td>{html.escape(units[m])}</td>{cells}</tr>")
@@ -106,6 +112,7 @@ def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: b
     files and plots, and ``index.md`` / ``index.html`` over all scenarios."""
     from ..metrics import NUMERIC_FIELDS
     from ..provenance import provenance, provenance_line
+    from ..io import write_text_atomic
     from ..report import KEY_METRICS, bench_markdown, write_bench
 
     out = Path(out_dir) if out_dir is not None else Path(spec.report_dir)
@@ -150,14 +157,14 @@ def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: b
                     f'<a href="{html.escape(sc.label)}/runs.csv">runs.csv</a> &middot; '
                     f'<a href="{html.escape(sc.label)}/bench.json">bench.json</a></p>')
     md_path = out / "index.md"
-    md_path.write_text("\n".join(md), encoding="utf-8")
+    write_text_atomic(md_path, "\n".join(md))
     prov_path = out / "provenance.json"
-    prov_path.write_text(json.dumps(prov, indent=1) + "\n", encoding="utf-8")
+    write_text_atomic(prov_path, json.dumps(prov, indent=1) + "\n")
     paths.append(prov_path)
     style = ("body{font-family:sans-serif;margin:2em;max-width:80em}table{border-collapse:collapse;font-size:90%}"
              "td,th{border:1px solid #bbb;padding:2px 6px;text-align:left}tr:nth-child(even){background:#f4f4f4}")
     html_path = out / "index.html"
-    html_path.write_text("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
-                         f"<title>navsim campaign: {html.escape(spec.name)}</title><style>{style}</style></head>"
-                         "<body>\n" + "\n".join(body) + "\n</body></html>\n", encoding="utf-8")
+    write_text_atomic(html_path, "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
+                      f"<title>navsim campaign: {html.escape(spec.name)}</title><style>{style}</style></head>"
+                      "<body>\n" + "\n".join(body) + "\n</body></html>\n")
     return [md_path, html_path] + paths
