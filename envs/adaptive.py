@@ -14,6 +14,9 @@ owns no physics: the simulator makes the data, the estimator filters it.
 a[1]`` (default ``max_scale = 10``: factors 0.1..10 around the untuned filter);
 ``a = (0, 0)`` is the untuned filter, whose factors ``(q0, r0) = untuned_scale`` are
 applied at every reset.
+Values outside [-1, 1] are clipped to it; a non-finite value, a wrong shape or a
+non-real dtype raises :class:`~navsim.errors.ConfigError` before any state changes
+(:func:`navsim.envs.spaces.check_action`).
 
 ## The untuned filter (default: deliberately mis-tuned)
 By default ``untuned_scale = (1, 10)``: the filter the agent starts from has 10 times the
@@ -80,6 +83,7 @@ from navsim.naverror import local_level_error, position_error_norm
 from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
+from .spaces import check_action
 
 __all__ = ["AdaptiveFilterEnv", "NoiseAdapter"]
 
@@ -253,7 +257,11 @@ class AdaptiveFilterEnv(gym.Env):
     def step(self, action):
         if self._k < 0 or self._k >= self.n_steps:
             raise RuntimeError("AdaptiveFilterEnv.step: call reset() first")
-        a = np.clip(np.asarray(action, dtype=float).reshape(2), -1.0, 1.0)
+        a = check_action(action, (2,), "2 real numbers in [-1, 1] (log-scale factors on Q and R)")
+        if not np.all(np.isfinite(a)):  # a factor max_scale ** nan has no meaning: refused, nothing changed
+            raise ConfigError("action", "2 finite numbers in [-1, 1] (log-scale factors on Q and R)",
+                              "a non-finite value")
+        a = np.clip(a, -1.0, 1.0)
         q, r = self.untuned_scale[0] * self.max_scale ** a[0], self.untuned_scale[1] * self.max_scale ** a[1]
         self.adapter.set(q, r)
         self._scales = (float(q), float(r))

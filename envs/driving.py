@@ -11,7 +11,10 @@ navigation quality meets control.
 
 ## Action space
 ``Box(-1, 1, (1,))``: the command u (traction for u > 0, brake for u < 0), held over
-the decision period.
+the decision period. Values outside [-1, 1] are clipped to it; a non-finite value
+applies the full brake (u = -1, the safe command); a wrong shape or a non-real dtype
+raises :class:`~navsim.errors.ConfigError` before any state changes
+(:func:`navsim.envs.spaces.check_action`).
 
 ## Observation space
 ``Box(13,)`` float32: distance from the *estimated* arc length to the next platform mark
@@ -118,6 +121,7 @@ from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 from .plant import TrainParameters, TrainPlant
+from .spaces import check_action
 
 __all__ = ["DrivingEnv", "schedule_of"]
 
@@ -343,9 +347,8 @@ class DrivingEnv(gym.Env):
             raise RuntimeError("DrivingEnv.step: call reset() first")
         n = min(self.steps_per_decision, self.n_steps - self._k)
         dwelling = self.t < self.hold_until
-        u = -1.0 if dwelling else float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
-        if not math.isfinite(u):
-            u = -1.0
+        u = float(check_action(action, (1,), "1 real number in [-1, 1] (traction > 0, brake < 0)")[0])
+        u = -1.0 if dwelling or not math.isfinite(u) else min(max(u, -1.0), 1.0)  # nan / inf: full brake
         self._u = 0.0 if dwelling else u
         k0 = self._k
         phi0 = self._potential(self.plant.s, self.plant.v, self.target) if (

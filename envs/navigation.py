@@ -35,7 +35,10 @@ the same time::
 (R_E + h) cos(lat)``, ``dN = dlat (R_N + h)``, ``dU = dh`` at the true position),
 ``dv_n`` in m/s, angle differences wrapped to (-pi, pi] by
 :func:`navsim.naverror.wrap_angle`, in rad. Defaults ``reward_weights=(1, 0, 0)``: minus the 3-D position error in
-metres. A non-finite action gets ``-reward_cap`` (default 1e4).
+metres. A non-finite action gets ``-reward_cap`` (default 1e4); values outside the box are
+scored as they come (never clipped). An action that is not 9 real numbers (wrong shape,
+bool / complex / string / object dtype) raises :class:`~navsim.errors.ConfigError` before
+any state changes (:func:`navsim.envs.spaces.check_action`), so the episode goes on.
 
 ## Starting state
 ``reset(seed)`` resets the simulator with that seed (the same numbers as
@@ -88,7 +91,7 @@ from navsim.scenario import Scenario, load_scenario
 from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, PreparedChunk, prepare_chunk
-from .spaces import ACTION_SCALE, action_space, layout_space
+from .spaces import ACTION_SCALE, action_space, check_action, layout_space
 
 __all__ = ["NavigationEnv", "resolve_scenario", "SCENARIO_SECTIONS"]
 
@@ -291,16 +294,8 @@ class NavigationEnv(gym.Env):
 
     def _action_list(self, action, k: int) -> list:
         """The action as 9 floats (checked first); records the extras of an EstimateAction."""
-        expected = "9 real numbers [lat, lon, h, vE, vN, vU, heading, pitch, roll] (an array of shape (9,))"
-        try:
-            arr = np.asarray(action)
-            if arr.dtype.kind not in "biuf" or arr.dtype.kind == "b":
-                raise TypeError
-            arr = arr.astype(float)
-        except (TypeError, ValueError):
-            raise ConfigError("action", expected, f"a value of type {type(action).__name__}") from None
-        if arr.shape != (9,) and not (arr.ndim == 2 and arr.shape[0] == 1 and arr.shape[1] == 9):
-            raise ConfigError("action", expected, f"an array of shape {arr.shape}")
+        arr = check_action(action, (9,), "9 real numbers [lat, lon, h, vE, vN, vU, heading, pitch, roll] "
+                           "(an array of shape (9,))")
         if isinstance(action, np.ndarray):
             extras = getattr(action, "extras", None)
             if extras is not None and self.tape is not None:
@@ -311,12 +306,7 @@ class NavigationEnv(gym.Env):
                     self.tape.nis[k] = (nis, dof)
                 if cpu is not None:
                     self.tape.cpu[k] = cpu
-            a = np.asarray(action, dtype=float).reshape(-1).tolist()
-        else:
-            a = [float(x) for x in np.asarray(action, dtype=float).reshape(-1)]
-        if len(a) != 9:
-            raise ConfigError("action", "9 numbers [lat, lon, h, vE, vN, vU, heading, pitch, roll]", action)
-        return a
+        return arr.tolist()
 
     def _score(self):
         from navsim.metrics import score_episode

@@ -112,7 +112,10 @@ class GymnasiumVecEnv(VecEnv):
         return _writable(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions)
+        from .spaces import check_action
+
+        shape = (self.num_envs, *self.action_space.shape)
+        self._actions = check_action(actions, shape, f"an array of shape {shape} of real numbers", name="actions")
 
     def step_wait(self):
         from gymnasium.vector import AutoresetMode

@@ -43,7 +43,7 @@ from navsim.signals import (
 
 __all__ = ["ACTION_SCALE", "solution_to_action", "action_to_solution", "MAX_RATE_RAD_S", "MAX_FORCE_MPS2",
            "MAX_RANGE_M", "MAX_RANGE_RATE_MPS", "MAX_SAT_SPEED_MPS", "MAX_WHEEL_SPEED_MPS", "ACTION_LABELS",
-           "observation_space", "layout_space", "action_space", "OBS_KEYS", "ODOMETER_KEY"]
+           "observation_space", "layout_space", "action_space", "OBS_KEYS", "ODOMETER_KEY", "check_action"]
 
 ACTION_LABELS = SOLUTION_FIELDS
 
@@ -113,3 +113,32 @@ def action_space(physical: bool = False) -> spaces.Box:
     low = np.array([-pi / 2, -pi, -1e4, -1e3, -1e3, -1e3, -2 * pi, -pi / 2, -pi])
     high = np.array([pi / 2, pi, 1e5, 1e3, 1e3, 1e3, 2 * pi, pi / 2, pi])
     return spaces.Box(low=low, high=high, dtype=np.float64)
+
+
+def check_action(action, shape: tuple[int, ...], expected: str, name: str = "action") -> np.ndarray:
+    """The action as a float64 array of ``shape``, checked before an env changes any state.
+
+    The one action check of every env (single, vector, the two tasks, the SB3 adapter).
+    Accepted: real numbers (integers or floats; bool, complex, strings, objects and None
+    are refused) whose array has ``shape``, or ``(1,) + shape`` (a batch of one, from a
+    policy's ``predict``; the leading axis is dropped). Anything else raises
+    :class:`~navsim.errors.ConfigError` naming ``name``, ``expected`` and what came (its
+    type or shape, never its contents). Values are returned as they are, non-finite and
+    out-of-bounds ones included: each env documents what it does with those (the
+    navigation envs score a non-finite solution at ``-reward_cap``; the tasks refuse it
+    or clip out-of-bounds values to the box).
+    """
+    from navsim.errors import ConfigError
+
+    try:
+        arr = np.asarray(action)
+    except (TypeError, ValueError):  # ragged sequences
+        raise ConfigError(name, expected, f"a value of type {type(action).__name__}") from None
+    if arr.dtype.kind not in "iuf":
+        raise ConfigError(name, expected, f"a value of type {type(action).__name__} (dtype {arr.dtype})")
+    if arr.shape != tuple(shape):
+        if arr.shape == (1, *shape):
+            arr = arr[0]
+        else:
+            raise ConfigError(name, expected, f"an array of shape {arr.shape}")
+    return np.asarray(arr, dtype=np.float64)

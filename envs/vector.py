@@ -49,7 +49,7 @@ from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, chunk_truth_table, held_flags
 from .navigation import resolve_scenario
-from .spaces import ACTION_SCALE, action_space, layout_space
+from .spaces import ACTION_SCALE, action_space, check_action, layout_space
 
 __all__ = ["NavigationVectorEnv"]
 
@@ -219,9 +219,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         if self._autoreset:
             obs, info = self._reset_all([None] * n)
             return obs, np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), info
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != (n, 9):
-            raise ConfigError("actions", f"an array of shape ({n}, 9)", a.shape)
+        a = check_action(actions, (n, 9), f"{n} x 9 real numbers (one solution per member, an array of shape "
+                         f"({n}, 9))", name="actions")  # before any state changes; non-finite rows: -reward_cap
         i = self._i
         row = self._truth[i]  # the truth is the same for every member
         sc = self.action_scale
