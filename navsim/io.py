@@ -52,8 +52,8 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "check_output_dir", "STEP_KEYS",
-           "GNSS_KEYS", "ODOMETER_KEYS"]
+__all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "save_figure",
+           "check_output_dir", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
 
 STEP_KEYS = (
     "t", "s", "speed", "accel_along", "lat", "lon", "h", "velocity_n", "heading", "pitch", "roll",
@@ -138,9 +138,21 @@ def check_output_dir(folder: str | Path) -> Path:
     return folder
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write a text file through :func:`atomic_output` (UTF-8)."""
-    with atomic_output(path, "w", encoding="utf-8", newline="") as fh:
+def save_figure(fig, path: str | Path, **savefig_kw) -> Path:
+    """Save a Matplotlib figure through :func:`atomic_output` (the format from the file's
+    suffix, PNG when it has none); the folder is created if needed. A failed or killed
+    save leaves the previous file whole."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    with atomic_output(path, "wb") as fh:
+        fig.savefig(fh, format=fmt, **savefig_kw)
+    return path
+
+
+def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
+    """Write a text file through :func:`atomic_output` (UTF-8 unless told)."""
+    with atomic_output(path, "w", encoding=encoding, newline="") as fh:
         fh.write(text)
     return Path(path)
 

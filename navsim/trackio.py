@@ -204,7 +204,9 @@ def write_geojson(path: str | os.PathLike, lat, lon, h, *, properties: dict | No
     lines = ",\n".join(json.dumps(c, separators=(",", ":")) for c in coords)
     text = ('{"type": "Feature",\n"properties": ' + json.dumps(props, indent=1, sort_keys=False)
             + ',\n"geometry": {"type": "LineString", "coordinates": [\n' + lines + "\n]}}\n")
-    Path(path).write_text(text, encoding="utf-8")
+    from .io import write_text_atomic
+
+    write_text_atomic(path, text)
 
 
 def _segment_dict(g: TrackSegment | dict) -> dict:
@@ -306,7 +308,9 @@ def read_csv(path: str | os.PathLike) -> Waypoints:
 
 def write_csv(path: str | os.PathLike, lat, lon, h) -> None:
     """Write waypoints as CSV with the header ``lat_deg,lon_deg,h_m``."""
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    from .io import atomic_output
+
+    with atomic_output(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(["lat_deg", "lon_deg", "h_m"])
         lon_deg = (np.degrees(np.asarray(lon, float)) + 180.0) % 360.0 - 180.0

@@ -70,3 +70,34 @@ def test_failed_write_removes_its_temporary_and_keeps_the_target(tmp_path):
     with atomic_output(target) as fh:
         fh.write(b"new")
     assert target.read_bytes() == b"new" and [p.name for p in tmp_path.iterdir()] == ["x.bin"]
+
+
+PLOT_KILLER = """
+import os, signal, sys
+import matplotlib
+matplotlib.use("Agg")
+from matplotlib.figure import Figure
+original = Figure.savefig
+def savefig(self, fname, *a, **k):
+    fname.write(b"\\x89PNG half a plot")  # a partial image, then the process dies mid-save
+    fname.flush()
+    os.kill(os.getpid(), signal.SIGKILL)
+Figure.savefig = savefig
+from navsim.plots import plot_outage_drifts
+plot_outage_drifts({}, sys.argv[1], title="second")
+"""
+
+
+def test_plot_killed_during_the_save_keeps_the_previous_image(tmp_path):
+    pytest.importorskip("matplotlib")
+    from navsim.plots import plot_outage_drifts
+
+    out = tmp_path / "bench_outages.png"
+    plot_outage_drifts({}, out, title="first")
+    before = out.read_bytes()
+    assert before.startswith(b"\x89PNG\r\n\x1a\n")
+    proc = subprocess.run([sys.executable, "-c", PLOT_KILLER, str(out)], capture_output=True, timeout=300)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr.decode()[-2000:]
+    assert out.read_bytes() == before  # the previous image whole; at most a .part beside it
+    assert all(p.name == out.name or p.name.endswith(".part") for p in tmp_path.iterdir())
+

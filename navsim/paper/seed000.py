@@ -569,7 +569,9 @@ def _plots(plot_dir, coning, sculling, local, steps, position, pseudo) -> None:
 
     def save(fig, name):
         fig.tight_layout()
-        fig.savefig(os.path.join(plot_dir, name), dpi=110)
+        from ..io import save_figure
+
+        save_figure(fig, os.path.join(plot_dir, name), dpi=110)
         plt.close(fig)
 
     for title, data, table, fname, ylabel in (

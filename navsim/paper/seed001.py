@@ -203,5 +203,7 @@ def _plot(plot_dir: str, ref_h, p, m, h: float) -> None:
     axes[1].set_xlabel("t, s")
     fig.suptitle("Seed 001 fig. 2: error quaternions, h = 5 ms, RK4 reference at 1 ms")
     fig.tight_layout()
-    fig.savefig(os.path.join(plot_dir, "seed001_fig2.png"), dpi=120)
+    from ..io import save_figure
+
+    save_figure(fig, os.path.join(plot_dir, "seed001_fig2.png"), dpi=120)
     plt.close(fig)

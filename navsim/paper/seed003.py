@@ -461,5 +461,7 @@ def _plots(plot_dir: str, ex) -> None:
         axes[-1].set_xlabel("t, s (GNSS outage shaded)")
         fig.suptitle("003 example: errors of Y = [alpha, beta, gamma, phi, V_Y], seed 0")
         fig.tight_layout()
-        fig.savefig(os.path.join(plot_dir, fname), dpi=110)
+        from ..io import save_figure
+
+        save_figure(fig, os.path.join(plot_dir, fname), dpi=110)
         plt.close(fig)

@@ -191,7 +191,9 @@ def write_yuma(
             f"{'week:':<28}{week}",
             "",
         ]
-    Path(path).write_text("\n".join(out), encoding="ascii")
+    from ...io import write_text_atomic
+
+    write_text_atomic(path, "\n".join(out), encoding="ascii")
 
 
 def reference_almanac(*, epoch_offset_s: float = 0.0) -> Constellation:
