@@ -60,7 +60,7 @@ Divergence (filter-independent, :func:`detect_divergence`)
        The 20 % allowance keeps dips from splitting a sustained excess (with a covariance
        100 times too small the NEES still falls below the quantile at 8.8 % of the steps
        for d = 2, 0.16 % for d = 5), and a single spike never fills a window. Episodes
-       shorter than the window are not checked.
+       shorter than the window are not checked; a window of ``inf`` switches check 3 off.
 
     ``diverged_at_s`` is the earliest time any check fires (for check 3 the first step
     of the sustained run) and ``divergence_reason`` says which checks fired, when and
@@ -762,7 +762,8 @@ def detect_divergence(t: np.ndarray, estimate: Mapping[str, np.ndarray], horizon
     dt : step length, s (default: the median spacing of ``t``); the window of check 3
         holds ``round(nees_window_s / dt)`` steps.
     threshold_m : horizontal threshold of check 2, m (> 0).
-    nees_quantile : q of check 3, in (0, 1). nees_window_s : its window, s (> 0).
+    nees_quantile : q of check 3, in (0, 1). nees_window_s : its window, s (> 0; ``inf``
+        switches check 3 off).
     """
     if not threshold_m > 0:
         raise ConfigError("divergence_threshold_m", "a positive number", threshold_m)
@@ -792,8 +793,8 @@ def detect_divergence(t: np.ndarray, estimate: Mapping[str, np.ndarray], horizon
     above = np.nan_to_num(h, nan=0.0) > threshold_m
     if above.any():
         k = int(np.argmax(above))
-        found.append((float(t[k]), f"horizontal error {h[k]:.4g} m > {threshold_m:g} m at {t[k]:.6g} s"))
-    if nees_per_step is not None and nees_dof >= 1:
+        found.append((float(t[k]), f"horizontal error {h[k]:.6g} m > {threshold_m:g} m at {t[k]:.6g} s"))
+    if nees_per_step is not None and nees_dof >= 1 and math.isfinite(nees_window_s):
         x = np.asarray(nees_per_step, dtype=float)
         limit = float(stats.chi2.ppf(nees_quantile, nees_dof))
         over = np.nan_to_num(x, nan=0.0) > limit

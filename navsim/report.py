@@ -42,6 +42,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .metrics import (
+    DIVERGENCE_NEES_WINDOW_S,
     SCORE_FIELDS,
     EpisodeScore,
     McNees,
@@ -254,6 +255,7 @@ class BenchResult:
 
 def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: dict | None = None, *,
           method: str = "t", confidence: float = 0.95, divergence_threshold_m: float = 1000.0,
+          divergence_nees_window_s: float = DIVERGENCE_NEES_WINDOW_S,
           progress: Callable[[int], None] | None = None, describe: Callable[[str], None] | None = None,
           max_samples: int = 2000) -> BenchResult:
     """Run every estimator on every seed; one simulation per seed (see module docstring).
@@ -264,6 +266,8 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
         :func:`navsim.estimators.available`). seeds : ints.
     options : ``{None: {...}, name: {...}}`` keyword options (see :func:`parse_options`).
     method, confidence : interval of :func:`navsim.metrics.aggregate`.
+    divergence_threshold_m, divergence_nees_window_s : the divergence checks of
+        :func:`navsim.metrics.detect_divergence` (a diverged run has NaN accuracy figures).
     progress : callable(n_steps) for a progress bar; describe : callable(text) told
         which estimator and seed is running.
     max_samples : horizontal-error samples kept per episode for the plots.
@@ -273,6 +277,10 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
 
     names = _check_estimators(list(estimators))
     options = options or {}
+    from .metrics import detect_divergence
+
+    detect_divergence(np.zeros(0), {}, np.zeros(0), threshold_m=divergence_threshold_m,  # checks the settings
+                      nees_window_s=divergence_nees_window_s)
     for name in names:  # bad options are a configuration error: fail before simulating
         make(name, **_options_for(options, name))
     seeds = list(seeds)
@@ -299,7 +307,8 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
             try:
                 record = run_one(scenario, name, seed, _options_for(options, name), progress=tick, simulator=source)
                 series = error_series(record, track)
-                score = score_episode(record, series=series, divergence_threshold_m=divergence_threshold_m)
+                score = score_episode(record, series=series, divergence_threshold_m=divergence_threshold_m,
+                                      divergence_nees_window_s=divergence_nees_window_s)
             except Exception as exc:  # noqa: BLE001 - a failing estimator is a result, not a crash
                 result.failures.append({"estimator": name, "seed": seed, "error": f"{type(exc).__name__}: {exc}"})
                 if progress is not None and steps > done[0]:
@@ -528,13 +537,18 @@ def cmd_run(args) -> int:
     scenario = _load_scenario(args)
     name = _check_estimators([args.estimator])[0]
     options = _options_for(parse_options(args.option or []), name)
+    from .metrics import detect_divergence
+
+    detect_divergence(np.zeros(0), {}, np.zeros(0), threshold_m=args.divergence_threshold_m,  # before the episode
+                      nees_window_s=args.divergence_nees_window_s)
     bar = _bar(scenario.timing.steps, args.quiet, f"{name} on {scenario.name}")
     try:
         record = run_one(scenario, name, args.seed, options, progress=bar.update)
     finally:
         bar.close()
     series = error_series(record)
-    score = score_episode(record, series=series, divergence_threshold_m=args.divergence_threshold_m)
+    score = score_episode(record, series=series, divergence_threshold_m=args.divergence_threshold_m,
+                          divergence_nees_window_s=args.divergence_nees_window_s)
     prov = provenance(scenario)
     if args.json:
         print(json.dumps({**score.to_flat_dict(), **{k: prov[k] for k in
@@ -567,7 +581,8 @@ def cmd_bench(args) -> int:
     bar = _bar(scenario.timing.steps * len(seeds) * len(names), args.quiet, f"bench {scenario.name}")
     try:
         result = bench(scenario, names, seeds, options, method=args.interval,
-                       divergence_threshold_m=args.divergence_threshold_m, progress=bar.update,
+                       divergence_threshold_m=args.divergence_threshold_m,
+                       divergence_nees_window_s=args.divergence_nees_window_s, progress=bar.update,
                        describe=bar.set_postfix_str)
     finally:
         bar.close()
@@ -587,6 +602,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="override a scenario field, e.g. timing.duration_s=60")
     p.add_argument("--divergence-threshold-m", type=float, default=1000.0, metavar="M",
                    help="horizontal error that flags divergence (default 1000 m)")
+    p.add_argument("--divergence-nees-window-s", type=float, default=DIVERGENCE_NEES_WINDOW_S, metavar="S",
+                   help="the NEES must exceed the chi2 0.9999 quantile at 80 %% of some window this long to flag "
+                        f"divergence (default {DIVERGENCE_NEES_WINDOW_S:g} s; inf: no NEES check)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
