@@ -280,7 +280,7 @@ def _embed_scenario(scenario, resources: dict[str, bytes]):
         resources[path.name] = path.read_bytes()
         data["track"]["file"] = path.name
     if scenario.gnss.constellation.startswith("yuma:"):
-        path = scenario.resolve_path(scenario.gnss.constellation[5:])
+        path = scenario.resolve_path(scenario.gnss.constellation[5:], "almanac")
         resources[path.name] = path.read_bytes()
         data["gnss"]["constellation"] = f"yuma:{path.name}"
     import tomli_w

@@ -422,9 +422,9 @@ class Scenario:
         Bundled data (``track.bundled``, the scenario presets) is versioned with navsim."""
         deps = {}
         if self.track.file:
-            deps["track.file"] = self.resolve_path(self.track.file)
+            deps["track.file"] = self.file_candidates(self.track.file, "track")[0]
         if self.gnss.constellation.startswith("yuma:"):
-            deps["gnss.constellation"] = self.resolve_path(self.gnss.constellation[5:])
+            deps["gnss.constellation"] = self.file_candidates(self.gnss.constellation[5:], "almanac")[0]
         return deps
 
     def file_digests(self) -> dict[str, str]:
@@ -438,10 +438,43 @@ class Scenario:
                 out[name] = "missing"
         return out
 
-    def resolve_path(self, name: str) -> Path:
-        """A file name from the scenario, relative to the scenario's folder."""
+    def file_candidates(self, name: str, kind: str = "track") -> list[Path]:
+        """Where a file name of the scenario is looked for, in order; the first existing one
+        is used (the first one when none exists).
+
+        1. an absolute path: itself only;
+        2. relative to the scenario file's folder (``base_dir``; a scenario not read from
+           a file has none);
+        3. relative to the current directory;
+        4. a bare name (no folder separators, not ``..``): navsim's bundled data,
+           ``navsim/data/tracks`` for ``kind="track"``, ``navsim/data/almanac`` for
+           ``kind="almanac"``.
+        """
         path = Path(name)
-        return path if path.is_absolute() or not self.base_dir else Path(self.base_dir) / path
+        if path.is_absolute():
+            return [path]
+        found = [Path(self.base_dir) / path] if self.base_dir else []
+        found.append(Path.cwd() / path)
+        if "/" not in name and "\\" not in name and name not in ("", ".", ".."):
+            folder = {"track": "tracks", "almanac": "almanac"}.get(kind)
+            if folder is None:
+                raise ConfigError("kind", "'track' or 'almanac'", kind)
+            found.append(Path(str(resources.files("navsim") / "data" / folder / name)))
+        for p in found:
+            if p.is_file():
+                return [p] + [q for q in found if q != p]
+        return found
+
+    def resolve_path(self, name: str, kind: str = "track", field: str | None = None) -> Path:
+        """The file a scenario names (``track.file``, a YUMA almanac): the first existing
+        place of :meth:`file_candidates` (scenario folder, current directory, bundled
+        data). Raises :class:`ConfigError` naming the field and every place tried
+        (never the file's contents) when none exists."""
+        candidates = self.file_candidates(name, kind)
+        if candidates[0].is_file():
+            return candidates[0]
+        field = field or ("track.file" if kind == "track" else "gnss.constellation")
+        raise ConfigError(field, "an existing file", f"{name!r} (looked in: {', '.join(str(p) for p in candidates)})")
 
 
 _HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]), ("motion", "speed_amplitude_mps", 0.0),

@@ -280,7 +280,7 @@ def build_gnss(scenario: Scenario, earth):
     """Constellation and truth-side GNSS error model of the scenario."""
     cfg = scenario.gnss
     if cfg.constellation.startswith("yuma:"):
-        constellation = gnss_mod.load_yuma(scenario.resolve_path(cfg.constellation[5:]))
+        constellation = gnss_mod.load_yuma(scenario.resolve_path(cfg.constellation[5:], "almanac"))
     elif cfg.constellation in ("gps", "glonass"):
         constellation = gnss_mod.walker_constellation(cfg.constellation, phase_rad=math.radians(cfg.epoch_phase_deg))
     else:
