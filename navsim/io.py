@@ -102,7 +102,7 @@ def chunk_arrays(chunk, n_sats: int | None = None) -> dict[str, np.ndarray]:
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | Path, mode: str = "wb", **open_kw):
+def atomic_output(path: str | os.PathLike[str], mode: str = "wb", **open_kw):
     """Open a temporary file beside ``path`` for writing; on success it is flushed to disk
     and renamed onto ``path`` (``os.replace``, atomic on POSIX and Windows), on any
     failure (an exception, a full disk) it is removed. A reader, or a killed writer,
@@ -150,7 +150,7 @@ def save_figure(fig, path: str | Path, **savefig_kw) -> Path:
     return path
 
 
-def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
+def write_text_atomic(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> Path:
     """Write a text file through :func:`atomic_output` (UTF-8 unless told)."""
     with atomic_output(path, "w", encoding=encoding, newline="") as fh:
         fh.write(text)

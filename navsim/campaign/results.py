@@ -110,9 +110,9 @@ def _html_table(result, metrics: Sequence[str]) -> str:
 def write_report(spec: CampaignSpec, out_dir: str | Path | None = None, plots: bool = True) -> list[Path]:
     """Write the campaign report: per scenario a folder with navsim.report's bench
     files and plots, and ``index.md`` / ``index.html`` over all scenarios."""
+    from ..io import write_text_atomic
     from ..metrics import NUMERIC_FIELDS
     from ..provenance import provenance, provenance_line
-    from ..io import write_text_atomic
     from ..report import KEY_METRICS, bench_markdown, write_bench
 
     out = Path(out_dir) if out_dir is not None else Path(spec.report_dir)
