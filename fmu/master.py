@@ -50,6 +50,72 @@ _FMI2_TYPES = {"Real": "real", "Integer": "int", "Boolean": "bool", "String": "s
 _FMI3_TYPES = {"Float64": "real", "Int32": "int", "Boolean": "bool", "String": "string"}
 
 
+class _Fmi2Logs:
+    """The FMI 2 logger of every :class:`FmuInstance` in the process: one C callback, never freed.
+
+    An FMI 2 logger is variadic (printf-style), which ctypes cannot receive, so fmpy's
+    native ``addLoggerProxy`` puts a C function in the callbacks that formats the message
+    and calls the Python logger stored in ONE static variable of fmpy's logging library,
+    overwritten by every later ``addLoggerProxy`` call (each instance, each
+    ``fmpy.simulate_fmu``). With one Python callback per instance, every instance's
+    messages went to the newest instance's log, and once that instance (or a finished
+    ``simulate_fmu``) was garbage-collected, the next message of any live instance called
+    a freed ctypes thunk: a SIGSEGV there or a corrupted heap found later (at exit:
+    "corrupted double-linked list", exit code 139). Here a single module-level thunk is
+    the only Python logger ever given to the proxy, it is never freed, and it finds the
+    instance's log by the ``componentEnvironment`` the FMU passes back (a key, not a
+    pointer); :meth:`claim_proxy`, called before each FMI call, points the proxy back at
+    it in case other fmpy code in the process repointed it.
+    """
+
+    def __init__(self):
+        self._logs: dict[int, list] = {}
+        self._next = 1
+        self._thunk = None
+        self._probe = None
+        self._add_proxy = None
+
+    def _setup(self) -> None:
+        from ctypes import byref
+
+        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        from fmpy.logging import addLoggerProxy
+
+        def dispatch(env, instance_name, status, category, message):
+            log = self._logs.get(env or 0)
+            if log is not None:
+                log.append((int(status), message.decode("utf-8", "replace") if isinstance(message, bytes)
+                            else str(message)))
+
+        self._thunk = fmi2CallbackLoggerTYPE(dispatch)
+        self._probe = fmi2CallbackFunctions()
+        self._add_proxy = lambda: addLoggerProxy(byref(self._probe))
+
+    def register(self, log: list) -> int:
+        if self._thunk is None:
+            self._setup()
+        key, self._next = self._next, self._next + 1
+        self._logs[key] = log
+        return key
+
+    def forget(self, key: int) -> None:
+        self._logs.pop(key, None)
+
+    def attach(self, callbacks) -> None:
+        """Give ``callbacks`` the proxy (formatting) in front of the shared thunk."""
+        callbacks.logger = self._thunk
+        self.claim_proxy()
+        callbacks.logger = self._probe.logger  # fmpy's formatting proxy
+
+    def claim_proxy(self) -> None:
+        """Point fmpy's proxy at the shared thunk (a no-op call but for one C call)."""
+        self._probe.logger = self._thunk
+        self._add_proxy()
+
+
+_FMI2_LOGS = _Fmi2Logs()
+
+
 class FmuInstance:
     """One co-simulation instance of an FMU under fmpy (FMI 2.0 or 3.0).
 
@@ -82,34 +148,21 @@ class FmuInstance:
 
     # -- life cycle ------------------------------------------------------------------------
     def _instantiate(self, debug_logging: bool) -> None:
-        def keep(status, message):
-            self.log.append((int(status), message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)))
-
         identifier = self.md.coSimulation.modelIdentifier
         if self.fmi == 2:
-            from ctypes import byref
-
             from fmpy.fmi1 import calloc, free
-            from fmpy.fmi2 import (
-                FMU2Slave,
-                fmi2CallbackAllocateMemoryTYPE,
-                fmi2CallbackFreeMemoryTYPE,
-                fmi2CallbackFunctions,
-                fmi2CallbackLoggerTYPE,
-            )
+            from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions
 
             self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir, modelIdentifier=identifier,
                                  instanceName=self.name)
+            # one process-wide logger; this instance's messages are told apart by its
+            # componentEnvironment key (see _Fmi2Logs)
+            self._log_key = _FMI2_LOGS.register(self.log)
             callbacks = fmi2CallbackFunctions()
-            callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, inst, status, cat, msg: keep(status, msg))
+            callbacks.componentEnvironment = self._log_key
             callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
             callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-            try:
-                from fmpy.logging import addLoggerProxy
-
-                addLoggerProxy(byref(callbacks))
-            except Exception:  # pragma: no cover - the proxy only formats printf arguments
-                pass
+            _FMI2_LOGS.attach(callbacks)
             self._callbacks = callbacks
             try:
                 self.fmu.instantiate(callbacks=callbacks, loggingOn=debug_logging)
@@ -120,7 +173,12 @@ class FmuInstance:
 
             self.fmu = FMU3Slave(guid=self.md.instantiationToken, unzipDirectory=self.unzipdir,
                                  modelIdentifier=identifier, instanceName=self.name)
-            self._logger = lambda env, status, cat, msg: keep(status, msg)
+            log = self.log  # FMI 3 loggers are not variadic: one callback per instance, no shared proxy
+
+            def keep(env, status, category, message):
+                log.append((int(status), message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)))
+
+            self._logger = keep
             try:
                 self.fmu.instantiate(loggingOn=debug_logging, logMessage=self._logger)
             except Exception:
@@ -128,6 +186,8 @@ class FmuInstance:
 
     def _call(self, what: str, fn, *args):
         seen = len(self.log)
+        if self.fmi == 2:
+            _FMI2_LOGS.claim_proxy()
         try:
             return fn(*args)
         except Exception as exc:
@@ -161,7 +221,11 @@ class FmuInstance:
         if self._freed:
             return
         self._freed = True
+        if self.fmi == 2:
+            _FMI2_LOGS.claim_proxy()
         self.fmu.freeInstance()
+        if self.fmi == 2:
+            _FMI2_LOGS.forget(self._log_key)
         if self._own_dir:
             shutil.rmtree(self.unzipdir, ignore_errors=True)
 
