@@ -445,8 +445,12 @@ def main(argv=None) -> int:
         base_cache: dict = {}
         _base = _base_text("paper-2012")
         base_cache["paper-2012"] = _base
+        results = []
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            results = list(pool.map(lambda c: run_case(c, root, base_cache, fmu_path), todo))
+            for r in pool.map(lambda c: run_case(c, root, base_cache, fmu_path), todo):
+                results.append(r)  # each result as it comes, so an interrupted run keeps its part
+                print(f"{len(results)}/{len(todo)} {r['class']:11s} {r['category']}: {r['name']}: {r['detail']}",
+                      file=sys.stderr, flush=True)
     print(markdown(results), end="")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
