@@ -15,26 +15,15 @@ Usage: ``python benchmarks/demo_ppo_driving.py [--steps 15000] [--seeds 10] [--e
 from __future__ import annotations
 
 import argparse
-import math
-
-import numpy as np
 
 import navsim.envs  # noqa: F401
+import numpy as np
 from _ppo_common import compare, report, train
+from navsim.envs.driving import braking_curve_driver
 
 LINE = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 10.0}, {"s_m": 1500.0, "dwell_s": 20.0}]}}
 
 
-def braking_curve_driver(obs, b=0.45, k=1.5):
-    """The braking-curve driver on the observation (the estimate), cruising at 17 m/s."""
-    d, v = obs[0] * 1000.0, obs[1] * 30.0
-    if obs[7] > 0:
-        return np.array([-1.0], np.float32)
-    target = min(17.0, math.sqrt(max(2 * b * max(d - 0.5, 0.0), 0.0)))
-    u = k * (target - v)
-    if d < 3.0 and v < 0.6:
-        u = -1.0 if d < 0.8 else 0.15
-    return np.array([np.clip(u, -1.0, 1.0)], np.float32)
 
 
 def note(res):

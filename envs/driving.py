@@ -123,8 +123,28 @@ from .navigation import resolve_scenario
 from .plant import TrainParameters, TrainPlant
 from .spaces import check_action
 
-__all__ = ["DrivingEnv", "schedule_of"]
+__all__ = ["DrivingEnv", "braking_curve_driver", "schedule_of"]
 
+
+
+def braking_curve_driver(obs: np.ndarray, b: float = 0.45, k: float = 1.5, cruise_mps: float = 17.0) -> np.ndarray:
+    """A reference driver for :class:`DrivingEnv` acting on the observation (the estimate).
+
+    It follows the braking curve ``v_t = min(cruise, sqrt(2 b max(d - 0.5 m, 0)))`` (``d`` the
+    estimated distance to the mark in m = ``obs[0]`` x 1000, ``v`` the estimated speed in m/s
+    = ``obs[1]`` x 30, ``b`` the planned deceleration in m/s^2) with the proportional command
+    ``u = k (v_t - v)``, holds the brake while dwelling (``obs[7]`` = 1), and creeps the
+    last metres (``d < 3 m``, ``v < 0.6 m/s``: 0.15 traction, full brake inside 0.8 m).
+    Returns the action, shape (1,), in [-1, 1].
+    """
+    d, v = obs[0] * 1000.0, obs[1] * 30.0
+    if obs[7] > 0:
+        return np.array([-1.0], np.float32)
+    target = min(cruise_mps, math.sqrt(max(2 * b * max(d - 0.5, 0.0), 0.0)))
+    u = k * (target - v)
+    if d < 3.0 and v < 0.6:
+        u = -1.0 if d < 0.8 else 0.15
+    return np.array([np.clip(u, -1.0, 1.0)], np.float32)
 
 def schedule_of(scenario, slack: float):
     """(marks (m), dwell (s), scheduled arrival (s), scheduled departure (s)) per station.

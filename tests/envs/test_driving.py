@@ -12,7 +12,7 @@ gym = pytest.importorskip("gymnasium")
 
 import navsim.envs  # noqa: E402,F401
 from gymnasium.utils.env_checker import check_env  # noqa: E402
-
+from navsim.envs.driving import braking_curve_driver as _driver  # noqa: E402
 from navsim.envs.plant import G0, TrainParameters, TrainPlant  # noqa: E402
 
 FLAT = lambda s: 0.0  # noqa: E731
@@ -54,16 +54,6 @@ def test_braking_stops_at_v0_squared_over_2b_and_does_not_roll_back():
                                                     / p.effective_mass_kg, rel=0.05)
 
 
-def _driver(obs, b=0.45, k=1.5):
-    """Braking-curve driver on the observation (the estimate), not the truth."""
-    d, v = obs[0] * 1000.0, obs[1] * 30.0
-    if obs[7] > 0:
-        return np.array([-1.0], np.float32)
-    target = min(17.0, math.sqrt(max(2 * b * max(d - 0.5, 0.0), 0.0)))
-    u = k * (target - v)
-    if d < 3.0 and v < 0.6:
-        u = -1.0 if d < 0.8 else 0.15
-    return np.array([np.clip(u, -1.0, 1.0)], np.float32)
 
 
 def test_check_env_without_warnings():
