@@ -15,10 +15,11 @@ extra ``fast``; compiled on the first call and cached on disk), or None without 
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
+
+from navsim.jit import available
 
 __all__ = ["available", "earth_constants", "kernel", "one_step", "run", "step_constants", "step_kernel"]
 
@@ -271,16 +272,8 @@ def one_step(c, k, dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, gyro_bias, accel
 
 
 _run = run
-_found: list[bool] = []
 _compiled: list = []
 _compiled_step: list = []
-
-
-def available() -> bool:
-    """True when numba is installed (it is not imported here)."""
-    if not _found:
-        _found.append(importlib.util.find_spec("numba") is not None)
-    return _found[0]
 
 
 def kernel():

@@ -38,6 +38,8 @@ import math
 
 import numpy as np
 
+from navsim.jit import available
+
 __all__ = ["STATUS_DONE", "STATUS_SUBSTEPS", "STATUS_FAILED", "STATUS_EPOCH", "advance", "advance_py",
            "available", "work_size", "outputs", "outputs_compiled", "prepare_row", "step_one", "step_one_compiled",
            "track_scalars", "track_scalars3"]
@@ -838,18 +840,6 @@ def _compile():
                  "prepare_row", "_ek", "_clip1", "output_row"):
         g[name] = jit(g[name])
     return g["advance_py"], jit(outputs), jit(step_one)
-
-
-_found = []
-
-
-def available() -> bool:
-    """True when the compiled engine can be used (numba is installed; not imported here)."""
-    if not _found:
-        import importlib.util
-
-        _found.append(importlib.util.find_spec("numba") is not None)
-    return _found[0]
 
 
 def _get(i):

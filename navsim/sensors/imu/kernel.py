@@ -23,7 +23,7 @@ on disk) or None without numba. ``navsim.sensors.imu.apply.USE_KERNEL`` switches
 
 from __future__ import annotations
 
-import importlib.util
+from navsim.jit import available
 
 __all__ = ["available", "kernel", "white_noise_into"]
 
@@ -52,15 +52,7 @@ def white_noise_into(z, slot0, factor, scale_density, h, base_r, base_rate, out_
                         out_rate[b, k, a] = base_rate[b, k, a] + noise / h
 
 
-_found: list[bool] = []
 _compiled: list = []
-
-
-def available() -> bool:
-    """True when numba is installed (it is not imported here)."""
-    if not _found:
-        _found.append(importlib.util.find_spec("numba") is not None)
-    return _found[0]
 
 
 def kernel():
