@@ -42,7 +42,7 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
     from navsim import estimators
     from navsim.episode import run_episode
     from navsim.fmu.build import build_fmu
-    from navsim.fmu.master import FmuInstance, _Plan
+    from navsim.fmu.master import Connection, FmuInstance
     from navsim.scenario import load_scenario
     from navsim.simulator import Simulator
 
@@ -93,13 +93,7 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
             try:
                 plant.initialize({"seed": 0})
                 est.initialize({})
-                inputs = [n for n, v in est.variables.items() if v.causality == "input"]
-                src, dst = _Plan(plant, inputs), _Plan(est, inputs)
-
-                def push():
-                    raw = src.fetch()
-                    for t, (vrs, _) in dst.groups.items():
-                        est.set_raw(t, vrs, raw[t])
+                push = Connection(plant, est).push
 
                 push()
                 spent = 0.0

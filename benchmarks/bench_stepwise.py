@@ -147,7 +147,7 @@ def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, 
 
 def fmu_table(steps: int, rounds: int, lc_batch_s: float | None) -> list[str]:
     from navsim.fmu.build import build_fmu
-    from navsim.fmu.master import FmuInstance, _Plan
+    from navsim.fmu.master import Connection, FmuInstance
     from navsim.scenario import load_scenario
     from navsim.simulator import Simulator
 
@@ -177,13 +177,7 @@ def fmu_table(steps: int, rounds: int, lc_batch_s: float | None) -> list[str]:
             try:
                 plant.initialize({"seed": 0})
                 est.initialize({})
-                inputs = [n for n, v in est.variables.items() if v.causality == "input"]
-                src, dst = _Plan(plant, inputs), _Plan(est, inputs)
-
-                def push():
-                    raw = src.fetch()
-                    for t, (vrs, _) in dst.groups.items():
-                        est.set_raw(t, vrs, raw[t])
+                push = Connection(plant, est).push
 
                 push()
                 plant_t = est_t = 0.0

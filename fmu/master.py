@@ -31,7 +31,7 @@ import numpy as np
 
 from navsim.errors import DependencyNotInstalled, NavsimError
 
-__all__ = ["FmuInstance", "FmuCallError", "cosimulate", "plant_scenario", "MASTERS"]
+__all__ = ["Connection", "FmuInstance", "FmuCallError", "cosimulate", "plant_scenario", "MASTERS"]
 
 
 class FmuCallError(NavsimError):
@@ -345,6 +345,27 @@ class _Plan:
                     out[name] = arr[where].reshape(shape)
         return out
 
+class Connection:
+    """The pair's connections: every estimator input fed by the plant output of the same
+    name, moved with one bulk get and one bulk set per variable type (FmuCallError when an
+    input has no plant output of its name)."""
+
+    def __init__(self, plant: FmuInstance, est: FmuInstance):
+        inputs = [n for n, v in est.variables.items() if v.causality == "input"]
+        missing = [n for n in inputs if n not in plant.variables or plant.variables[n].causality != "output"]
+        if missing:
+            raise FmuCallError(f"estimator inputs without a plant output of the same name: {missing[:5]}")
+        self.est = est
+        self.src, self.dst = _Plan(plant, inputs), _Plan(est, inputs)
+
+    def push(self) -> dict:
+        """Copy the plant's current outputs to the estimator's inputs; the raw values by type."""
+        raw = self.src.fetch()
+        for t, (vrs, _) in self.dst.groups.items():
+            self.est.set_raw(t, vrs, raw[t])
+        return raw
+
+
 
 def plant_scenario(plant: FmuInstance, parameters: dict | None = None):
     """The effective scenario of a navsim plant FMU instance with ``parameters``."""
@@ -396,22 +417,14 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
         scenario = plant_scenario(plant, params)
         plant.initialize(params)
         est.initialize(estimator_parameters or {})
-        # connections: every estimator input fed by the plant output of the same name
-        inputs = [n for n, v in est.variables.items() if v.causality == "input"]
-        missing = [n for n in inputs if n not in plant.variables or plant.variables[n].causality != "output"]
-        if missing:
-            raise FmuCallError(f"estimator inputs without a plant output of the same name: {missing[:5]}")
-        src, dst = _Plan(plant, inputs), _Plan(est, inputs)
+        link = Connection(plant, est)
         truth_names = [n for n, v in plant.variables.items() if n.startswith(("truth.", "time."))]
         truth_plan = _Plan(plant, truth_names)
         nav_names = [n for n, v in est.variables.items() if n.startswith("nav.")]
         nav_plan = _Plan(est, nav_names)
 
         def push():
-            raw = src.fetch()
-            for t, (vrs, _) in dst.groups.items():
-                est.set_raw(t, vrs, raw[t])
-            return src.unpack(raw)
+            return link.src.unpack(link.push())
 
         timing = scenario.timing
         n = timing.steps if steps is None else min(int(steps), timing.steps)
