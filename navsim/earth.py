@@ -34,6 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from .types import FloatOrArray
 
 __all__ = [
     "EarthModel",
@@ -108,7 +111,7 @@ class EarthModel:
         r_e = self.a * w2**-0.5
         return -1.5 * r_n * dw2 / w2, -0.5 * r_e * dw2 / w2
 
-    def geodetic_to_ecef(self, lat, lon, h) -> np.ndarray:
+    def geodetic_to_ecef(self, lat: FloatOrArray, lon: FloatOrArray, h: FloatOrArray) -> np.ndarray:
         """Geodetic latitude, longitude (rad) and height (m) to ECEF, shape (..., 3)."""
         lat, lon, h = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (lat, lon, h)))
         _, r_e = self.radii(lat)
@@ -122,7 +125,7 @@ class EarthModel:
             axis=-1,
         )
 
-    def ecef_to_geodetic(self, xyz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def ecef_to_geodetic(self, xyz: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """ECEF (..., 3) to geodetic latitude, longitude (rad) and height (m).
 
         Exact for the sphere; for the ellipsoid a Newton iteration on latitude from the
@@ -147,12 +150,12 @@ class EarthModel:
         return lat, lon, h
 
     # ------------------------------------------------------------------ rates
-    def earth_rate_n(self, lat) -> np.ndarray:
+    def earth_rate_n(self, lat: FloatOrArray) -> np.ndarray:
         """omega_ie_n = Omega [0, cos(lat), sin(lat)] in ENU, shape (..., 3), rad/s."""
         lat = np.asarray(lat, dtype=float)
         return self.rate * np.stack([np.zeros_like(lat), np.cos(lat), np.sin(lat)], axis=-1)
 
-    def transport_rate_n(self, lat, h, velocity_n) -> np.ndarray:
+    def transport_rate_n(self, lat: FloatOrArray, h: FloatOrArray, velocity_n: FloatOrArray) -> np.ndarray:
         """omega_en_n, the rate of the ENU frame relative to the Earth, rad/s, (..., 3).
 
         omega_en_n = [-v_N / (R_N + h), v_E / (R_E + h), v_E tan(lat) / (R_E + h)]
@@ -167,7 +170,7 @@ class EarthModel:
         )
 
     # ------------------------------------------------------------------ gravity
-    def gravity_n(self, lat, h) -> np.ndarray:
+    def gravity_n(self, lat: FloatOrArray, h: FloatOrArray) -> np.ndarray:
         """Plumb-line gravity (gravitation plus centrifugal) in ENU, m/s^2, (..., 3).
 
         Spherical model: gravitation ``-g`` along Up plus the centrifugal acceleration
@@ -223,7 +226,7 @@ def earth_model(name: str) -> EarthModel:
         raise ConfigError("earth", f"one of {sorted(models)}", name) from None
 
 
-def mat_en(lat, lon) -> np.ndarray:
+def mat_en(lat: FloatOrArray, lon: FloatOrArray) -> np.ndarray:
     """Rotation matrix from ECEF to ENU, shape (..., 3, 3); rows are E, N, U in ECEF.
 
     This is the matrix B(phi, lambda) of 003 eq. (5), written in standard ECEF axes:

@@ -48,9 +48,14 @@ import os
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Iterable
+from typing import IO, TYPE_CHECKING, Any, Iterable, Iterator
 
 import numpy as np
+
+if TYPE_CHECKING:  # type hints only
+    from matplotlib.figure import Figure
+
+    from .simulator import Chunk, ChunkBatch
 
 __all__ = ["chunk_arrays", "write_npz", "write_csv", "atomic_output", "write_text_atomic", "save_figure",
            "check_output_dir", "STEP_KEYS", "GNSS_KEYS", "ODOMETER_KEYS"]
@@ -69,7 +74,7 @@ GNSS_KEYS = (
 )
 
 
-def chunk_arrays(chunk, n_sats: int | None = None) -> dict[str, np.ndarray]:
+def chunk_arrays(chunk: Chunk | ChunkBatch, n_sats: int | None = None) -> dict[str, np.ndarray]:
     """The arrays of one :class:`~navsim.simulator.Chunk` under the keys documented above."""
     truth, imu = chunk.truth, chunk.imu
     out = {key: getattr(truth, key) for key in STEP_KEYS[:15]}
@@ -102,7 +107,7 @@ def chunk_arrays(chunk, n_sats: int | None = None) -> dict[str, np.ndarray]:
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike[str], mode: str = "wb", **open_kw):
+def atomic_output(path: str | os.PathLike[str], mode: str = "wb", **open_kw: Any) -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path`` for writing; on success it is flushed to disk
     and renamed onto ``path`` (``os.replace``, atomic on POSIX and Windows), on any
     failure (an exception, a full disk) it is removed. A reader, or a killed writer,
@@ -138,7 +143,7 @@ def check_output_dir(folder: str | Path) -> Path:
     return folder
 
 
-def save_figure(fig, path: str | Path, **savefig_kw) -> Path:
+def save_figure(fig: Figure, path: str | Path, **savefig_kw: Any) -> Path:
     """Save a Matplotlib figure through :func:`atomic_output` (the format from the file's
     suffix, PNG when it has none); the folder is created if needed. A failed or killed
     save leaves the previous file whole."""
@@ -166,7 +171,8 @@ def write_npz(path: str | Path, chunks: Iterable, meta: dict | None = None, n_sa
     """
     path = Path(path)
     with tempfile.TemporaryDirectory(prefix="navsim-") as tmp:
-        files, specs = {}, {}
+        files: dict[str, IO[bytes]] = {}
+        specs: dict[str, list[Any]] = {}  # key: [dtype, trailing shape, row count]
         try:
             for chunk in chunks:
                 for key, arr in chunk_arrays(chunk, n_sats).items():
@@ -235,6 +241,6 @@ def write_csv(path: str | Path, chunks: Iterable, n_sats: int | None = None) -> 
     return path, gnss_path
 
 
-def chunk_prn(chunk, m: int) -> np.ndarray:
+def chunk_prn(chunk: Chunk | ChunkBatch, m: int) -> np.ndarray:
     prn = getattr(chunk.gnss, "prn", None)
     return np.arange(1, m + 1) if prn is None else np.asarray(prn)

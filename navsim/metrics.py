@@ -96,15 +96,22 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import stats
 
 from .errors import ConfigError
 from .estimators.base import STATE_LABELS
 from .naverror import local_level_error, wrap_angle
 from .rotations import mat_nb_from_hpr, mat_to_quat, quat_to_rotvec
+
+if TYPE_CHECKING:  # type hints only
+    from .episode import EpisodeRecord
+    from .track import Track
+
+Components = Sequence[int] | NDArray[np.integer[Any]]  # indices into the 9 error components
 
 __all__ = [
     "error_vector",
@@ -138,7 +145,7 @@ MIN_SATELLITES = 4
 
 
 # ============================================================================ raw errors
-def error_vector(record) -> np.ndarray:
+def error_vector(record: EpisodeRecord) -> np.ndarray:
     """Estimation error (n, 9) = estimate - truth in the convention above."""
     d_e, d_n, d_u = local_level_error(record.est_lat, record.est_lon, record.est_h, record.truth_lat,
                                       record.truth_lon, record.truth_h, record.earth)
@@ -153,7 +160,7 @@ def error_vector(record) -> np.ndarray:
     return np.column_stack([d_e, d_n, d_u, dv, psi])
 
 
-def nees(errors: np.ndarray, covariance: np.ndarray, components=slice(None)) -> np.ndarray:
+def nees(errors: np.ndarray, covariance: np.ndarray, components: slice | Components = slice(None)) -> np.ndarray:
     """Normalised estimation error squared e^T P^-1 e per step over the chosen components.
 
     ``components`` : a slice or a sequence of indices into the 9 components. Steps
@@ -217,7 +224,7 @@ class ErrorSeries:
     sigma_cross_m: np.ndarray | None
 
 
-def error_series(record, track=None) -> ErrorSeries:
+def error_series(record: EpisodeRecord, track: Track | None = None) -> ErrorSeries:
     """Per-step errors of an :class:`~navsim.episode.EpisodeRecord`.
 
     Parameters
@@ -451,7 +458,7 @@ RANK_TOLERANCE = 1e-9
 _RANK_SAMPLES = 64  # steps sampled to find an episode's claimed rank
 
 
-def claimed_rank(covariance: np.ndarray, components) -> int:
+def claimed_rank(covariance: np.ndarray, components: Components) -> int:
     """The dimension of the error subspace a filter's covariance claims over
     ``components``: the largest numerical rank (:data:`RANK_TOLERANCE`) of the block at up to
     64 steps sampled evenly over the episode (steps with a non-finite block skipped)."""
@@ -468,7 +475,7 @@ def claimed_rank(covariance: np.ndarray, components) -> int:
     return int(np.max(np.sum(lam > RANK_TOLERANCE * np.maximum(lam[:, -1:], 1e-300), axis=1)))
 
 
-def nees_subspace(errors: np.ndarray, covariance: np.ndarray, components, rank: int) -> np.ndarray:
+def nees_subspace(errors: np.ndarray, covariance: np.ndarray, components: Components, rank: int) -> np.ndarray:
     """NEES on the ``rank``-dimensional subspace a singular covariance claims.
 
     Per step, with the block P = V diag(lam) V^T (eigenvalues descending), NEES =
@@ -491,7 +498,7 @@ def nees_subspace(errors: np.ndarray, covariance: np.ndarray, components, rank: 
     return out
 
 
-def nees_series(errors: np.ndarray, covariance: np.ndarray, components) -> tuple[np.ndarray, int]:
+def nees_series(errors: np.ndarray, covariance: np.ndarray, components: Components) -> tuple[np.ndarray, int]:
     """NEES per step and its dimension: over ``components`` when the covariance is full
     rank there (:func:`nees`), else on the subspace it claims (:func:`nees_subspace`)."""
     rank = claimed_rank(covariance, components)
@@ -619,7 +626,7 @@ SCORE_FIELDS.update({
 del _name, _label
 
 
-def _json_value(value):
+def _json_value(value: Any) -> Any:
     """JSON-safe scalar: NaN / inf -> None, numpy scalars -> Python."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
@@ -814,7 +821,7 @@ def detect_divergence(t: np.ndarray, estimate: Mapping[str, np.ndarray], horizon
     return Divergence(True, found[0][0], "; ".join(r for _, r in found), non_finite)
 
 
-def score_episode(record, *, track=None, series: ErrorSeries | None = None,
+def score_episode(record: EpisodeRecord, *, track: Track | None = None, series: ErrorSeries | None = None,
                   divergence_threshold_m: float = 1000.0, min_satellites: int = MIN_SATELLITES,
                   divergence_nees_quantile: float = DIVERGENCE_NEES_QUANTILE,
                   divergence_nees_window_s: float = DIVERGENCE_NEES_WINDOW_S) -> EpisodeScore:
@@ -843,7 +850,8 @@ def score_episode(record, *, track=None, series: ErrorSeries | None = None,
     t_end = float(t[-1]) if n else 0.0
     h, v, a, c = (error_stats(x) for x in (s.horizontal_m, s.vertical_m, s.along_m, s.cross_m))
     vel, att, head = error_stats(s.velocity_mps), error_stats(np.degrees(s.attitude_rad)), error_stats(np.degrees(s.heading_rad))
-    outages = find_outages(record.gnss_t, record.gnss_n_valid, t_start, t_end, timing.gnss_period_s, min_satellites)
+    outages: Sequence[Outage] = find_outages(record.gnss_t, record.gnss_n_valid, t_start, t_end, timing.gnss_period_s,
+                                             min_satellites)
     outages = outage_drifts(t, s.horizontal_m, s.vertical_m, outages, tol_s=0.5 * dt)
     drifts = np.array([o.max_drift_m for o in outages if math.isfinite(o.max_drift_m)])
     vdrifts = np.array([o.max_vertical_m for o in outages if math.isfinite(o.max_vertical_m)])

@@ -44,6 +44,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .types import FloatOrArray
+
 __all__ = [
     "skew",
     "quat_multiply",
@@ -63,7 +65,7 @@ __all__ = [
 ]
 
 
-def skew(vector) -> np.ndarray:
+def skew(vector: FloatOrArray) -> np.ndarray:
     """Cross-product matrix ``[v x]`` with ``skew(a) @ b == cross(a, b)``, shape (..., 3, 3)."""
     v = np.asarray(vector, dtype=float)
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
@@ -79,7 +81,7 @@ def skew(vector) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- quaternions
-def quat_multiply(p, q) -> np.ndarray:
+def quat_multiply(p: FloatOrArray, q: FloatOrArray) -> np.ndarray:
     """Hamilton product ``p * q`` of scalar-first quaternions, shape (..., 4)."""
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -96,20 +98,20 @@ def quat_multiply(p, q) -> np.ndarray:
     )
 
 
-def quat_conjugate(q) -> np.ndarray:
+def quat_conjugate(q: FloatOrArray) -> np.ndarray:
     """Conjugate (inverse of a unit quaternion), shape (..., 4)."""
     q = np.array(q, dtype=float)
     q[..., 1:] *= -1.0
     return q
 
 
-def quat_normalize(q) -> np.ndarray:
+def quat_normalize(q: FloatOrArray) -> np.ndarray:
     """Scale to unit norm, shape (..., 4)."""
     q = np.asarray(q, dtype=float)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
-def quat_from_rotvec(rotvec) -> np.ndarray:
+def quat_from_rotvec(rotvec: FloatOrArray) -> np.ndarray:
     """Quaternion of the rotation vector phi: ``[cos(|phi|/2), sin(|phi|/2) phi/|phi|]``.
 
     Uses the Taylor series of sin(x/2)/x below |phi| = 1e-4 rad, so it is accurate to
@@ -125,7 +127,7 @@ def quat_from_rotvec(rotvec) -> np.ndarray:
     return np.concatenate([np.cos(0.5 * angle)[..., None], half_sinc[..., None] * v], axis=-1)
 
 
-def quat_to_rotvec(q) -> np.ndarray:
+def quat_to_rotvec(q: FloatOrArray) -> np.ndarray:
     """Rotation vector of a unit quaternion, angle in [0, pi], shape (..., 3)."""
     q = np.asarray(q, dtype=float)
     q = np.where(q[..., :1] < 0.0, -q, q)
@@ -136,7 +138,7 @@ def quat_to_rotvec(q) -> np.ndarray:
     return scale[..., None] * q[..., 1:]
 
 
-def quat_to_mat(q) -> np.ndarray:
+def quat_to_mat(q: FloatOrArray) -> np.ndarray:
     """DCM of a unit quaternion: ``quat_to_mat(q_ab) = mat_ab``, shape (..., 3, 3)."""
     q = np.asarray(q, dtype=float)
     q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -150,7 +152,7 @@ def quat_to_mat(q) -> np.ndarray:
     )
 
 
-def mat_to_quat(mat) -> np.ndarray:
+def mat_to_quat(mat: FloatOrArray) -> np.ndarray:
     """Unit quaternion (scalar first, q0 >= 0) of a DCM, shape (..., 4).
 
     Delegates to :class:`scipy.spatial.transform.Rotation`, whose conversion is robust
@@ -166,13 +168,13 @@ def mat_to_quat(mat) -> np.ndarray:
     return quat.reshape(shape + (4,))
 
 
-def mat_from_rotvec(rotvec) -> np.ndarray:
+def mat_from_rotvec(rotvec: FloatOrArray) -> np.ndarray:
     """DCM of a rotation vector (Rodrigues' formula), shape (..., 3, 3)."""
     return quat_to_mat(quat_from_rotvec(rotvec))
 
 
 # ----------------------------------------------------------- vehicle heading/pitch/roll
-def mat_nb_from_hpr(heading, pitch, roll) -> np.ndarray:
+def mat_nb_from_hpr(heading: FloatOrArray, pitch: FloatOrArray, roll: FloatOrArray) -> np.ndarray:
     """Body-to-ENU DCM from heading, pitch and roll (rad), shape (..., 3, 3).
 
     ``mat_nb = Rz(-heading) Rx(pitch) Ry(roll)``; the body y (forward) axis in ENU is
@@ -194,7 +196,7 @@ def mat_nb_from_hpr(heading, pitch, roll) -> np.ndarray:
     )
 
 
-def hpr_from_mat_nb(mat_nb) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def hpr_from_mat_nb(mat_nb: FloatOrArray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Inverse of :func:`mat_nb_from_hpr`: heading in (-pi, pi], pitch, roll (rad)."""
     m = np.asarray(mat_nb, dtype=float)
     pitch = np.arcsin(np.clip(m[..., 2, 1], -1.0, 1.0))
@@ -203,7 +205,8 @@ def hpr_from_mat_nb(mat_nb) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return heading, pitch, roll
 
 
-def body_rate_from_hpr_rates(heading, pitch, roll, heading_rate, pitch_rate, roll_rate) -> np.ndarray:
+def body_rate_from_hpr_rates(heading: FloatOrArray, pitch: FloatOrArray, roll: FloatOrArray, heading_rate: FloatOrArray,
+                             pitch_rate: FloatOrArray, roll_rate: FloatOrArray) -> np.ndarray:
     """omega_nb_b, the body rate relative to ENU in body axes, from angle rates (rad/s).
 
     Differentiating ``mat_nb = Rz(-psi) Rx(theta) Ry(rho)`` gives
@@ -224,7 +227,7 @@ def body_rate_from_hpr_rates(heading, pitch, roll, heading_rate, pitch_rate, rol
 
 
 # ------------------------------------------------------------- Euler-Krylov angles (003)
-def euler_krylov_matrix(alpha, beta, gamma) -> np.ndarray:
+def euler_krylov_matrix(alpha: FloatOrArray, beta: FloatOrArray, gamma: FloatOrArray) -> np.ndarray:
     """The matrix D(alpha, beta, gamma) of seed 003, Appendix 1, shape (..., 3, 3).
 
     It maps reference-frame components to body components (a passive rotation):
@@ -247,7 +250,7 @@ def euler_krylov_matrix(alpha, beta, gamma) -> np.ndarray:
     )
 
 
-def euler_krylov_from_matrix(mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def euler_krylov_from_matrix(mat: FloatOrArray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Inverse of :func:`euler_krylov_matrix`: alpha in [-pi/2, pi/2], beta, gamma."""
     m = np.asarray(mat, dtype=float)
     alpha = np.arcsin(np.clip(-m[..., 2, 1], -1.0, 1.0))
@@ -256,7 +259,7 @@ def euler_krylov_from_matrix(mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return alpha, beta, gamma
 
 
-def euler_krylov_rate_matrix(alpha, gamma) -> np.ndarray:
+def euler_krylov_rate_matrix(alpha: FloatOrArray, gamma: FloatOrArray) -> np.ndarray:
     """Kinematic matrix Phi with ``[alpha', beta', gamma'] = Phi @ omega_b``, (..., 3, 3).
 
     ``omega_b`` is the body rate relative to the reference frame of D, in body axes.

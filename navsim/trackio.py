@@ -53,13 +53,17 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .earth import EarthModel, earth_model
 from .errors import ConfigError, TrackError, file_value
 from .track import CantModel, PolynomialTrack, SplineTrack, TrackSegment
+
+if TYPE_CHECKING:  # type hints only
+    from importlib.resources.abc import Traversable
 
 try:  # Python >= 3.11
     import tomllib
@@ -122,7 +126,8 @@ def _number(value: Any, where: str, source: str, what: str) -> float:
     return number
 
 
-def _finish(lat_deg, lon_deg, h, labels: Sequence[str], source: str, segments=(), properties=None) -> Waypoints:
+def _finish(lat_deg: ArrayLike, lon_deg: ArrayLike, h: ArrayLike, labels: Sequence[str], source: str,
+            segments: Sequence[TrackSegment | dict] = (), properties: dict | None = None) -> Waypoints:
     lat_deg = np.asarray(lat_deg, dtype=float)
     lon_deg = np.asarray(lon_deg, dtype=float)
     h = np.asarray(h, dtype=float)
@@ -191,7 +196,7 @@ def read_geojson(path: str | os.PathLike) -> Waypoints:
     return _finish(lat, lon, h, labels, source, segments, props)
 
 
-def write_geojson(path: str | os.PathLike, lat, lon, h, *, properties: dict | None = None,
+def write_geojson(path: str | os.PathLike, lat: ArrayLike, lon: ArrayLike, h: ArrayLike, *, properties: dict | None = None,
                   segments: Sequence[TrackSegment | dict] = ()) -> None:
     """Write a GeoJSON Feature with a LineString (lat, lon in rad, h in m)."""
     lat_deg, lon_deg = np.degrees(np.asarray(lat, float)), np.degrees(np.asarray(lon, float))
@@ -250,7 +255,7 @@ def read_gpx(path: str | os.PathLike) -> Waypoints:
     return _finish(lat, lon, h, labels, source, (), props)
 
 
-def write_gpx(path: str | os.PathLike, lat, lon, h, *, name: str = "") -> None:
+def write_gpx(path: str | os.PathLike, lat: ArrayLike, lon: ArrayLike, h: ArrayLike, *, name: str = "") -> None:
     """Write a GPX 1.1 file with one track (lat, lon in rad, h in m)."""
     ns = "http://www.topografix.com/GPX/1/1"
     ET.register_namespace("", ns)
@@ -306,7 +311,7 @@ def read_csv(path: str | os.PathLike) -> Waypoints:
     return _finish(lat, lon, h, labels, source, (), {})
 
 
-def write_csv(path: str | os.PathLike, lat, lon, h) -> None:
+def write_csv(path: str | os.PathLike, lat: ArrayLike, lon: ArrayLike, h: ArrayLike) -> None:
     """Write waypoints as CSV with the header ``lat_deg,lon_deg,h_m``."""
     from .io import atomic_output
 
@@ -436,7 +441,7 @@ def load_polynomial_toml(path: str | os.PathLike, *, earth: EarthModel | None = 
 
 
 def load_track(path: str | os.PathLike, *, earth: EarthModel | None = None, smoothing_m: float = 0.0,
-               cant_model: CantModel | None = None):
+               cant_model: CantModel | None = None) -> PolynomialTrack | SplineTrack:
     """Any supported track file as a track; ``earth`` overrides the file's Earth model."""
     if Path(path).suffix.lower() == ".toml":
         if not Path(path).is_file():
@@ -449,8 +454,8 @@ def load_track(path: str | os.PathLike, *, earth: EarthModel | None = None, smoo
 _BUNDLED_SUFFIXES = (".toml", ".geojson")
 
 
-def _bundled_dir():
-    return resources.files("navsim").joinpath("data", "tracks")
+def _bundled_dir() -> Traversable:
+    return resources.files("navsim").joinpath("data", "tracks")  # type: ignore[call-arg]  # the 3.10 stub takes one segment; a package folder is a Path
 
 
 def list_bundled_tracks() -> list[str]:
@@ -463,7 +468,7 @@ def list_bundled_tracks() -> list[str]:
     return sorted(names)
 
 
-def load_bundled_track(name: str, *, earth: EarthModel | None = None):
+def load_bundled_track(name: str, *, earth: EarthModel | None = None) -> PolynomialTrack | SplineTrack:
     """A bundled track by name; ``earth`` overrides the Earth model the file declares.
 
     The polynomial track's coefficients are angles and heights, valid on either Earth;
@@ -480,7 +485,7 @@ def load_bundled_track(name: str, *, earth: EarthModel | None = None):
     raise ConfigError("track.bundled", f"one of {list_bundled_tracks()}", name)
 
 
-def load_track_file(path, *, earth: EarthModel | None = None, smoothing_m: float = 0.0,
-                    cant_model: CantModel | None = None):
+def load_track_file(path: str | os.PathLike, *, earth: EarthModel | None = None, smoothing_m: float = 0.0,
+                    cant_model: CantModel | None = None) -> PolynomialTrack | SplineTrack:
     """A track from a file (.geojson/.json, .gpx, .csv, .toml); see :mod:`navsim.trackio`."""
     return load_track(path, earth=earth, smoothing_m=smoothing_m, cant_model=cant_model)

@@ -15,6 +15,9 @@ FMUs can all import it without pulling in each other.
   ``Prior`` and ``Estimate`` are kept as names of this one type.
   :class:`EstimateBatch`: the solutions of n steps.
 * :data:`STATE_LABELS`: the error vector the 9 x 9 covariances are over.
+* :data:`FloatArray`, :data:`IntArray`, :data:`BoolArray`: the annotation aliases of the
+  package's NumPy arrays (``numpy.typing.NDArray`` of float64, int64, bool);
+  :data:`FloatOrArray`: a float or a float array, for the broadcasting functions.
 
 Frames and units follow the package conventions (:mod:`navsim`): geodetic latitude,
 longitude (rad) and height (m); ENU velocity (m/s); heading, pitch, roll (rad) of the
@@ -31,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 if TYPE_CHECKING:  # type hints only: no import of the track or Earth modules at run time
     from .earth import EarthModel
@@ -38,6 +42,10 @@ if TYPE_CHECKING:  # type hints only: no import of the track or Earth modules at
 
 __all__ = [
     "STATE_LABELS",
+    "FloatArray",
+    "IntArray",
+    "BoolArray",
+    "FloatOrArray",
     "NominalImu",
     "NominalGnss",
     "NominalOdometer",
@@ -51,6 +59,11 @@ __all__ = [
     "Estimate",
     "EstimateBatch",
 ]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+FloatOrArray = float | NDArray[np.floating[Any]]
 
 STATE_LABELS = ("dE", "dN", "dU", "dvE", "dvN", "dvU", "psiE", "psiN", "psiU")
 

@@ -26,8 +26,12 @@ from __future__ import annotations
 
 import math
 import os
+from typing import TYPE_CHECKING, SupportsIndex
 
 from .errors import ConfigError
+
+if TYPE_CHECKING:  # type hints only
+    from .scenario import Scenario
 
 __all__ = ["validate_scenario", "check_seed", "check_steps", "available_memory_bytes", "BYTES_PER_IMU_SAMPLE_NODE"]
 
@@ -52,12 +56,12 @@ def available_memory_bytes() -> int | None:
         return None
 
 
-def _step_bytes(scenario) -> int:
+def _step_bytes(scenario: Scenario) -> int:
     timing = scenario.timing
     return timing.samples_per_step * scenario.imu.quadrature_nodes * BYTES_PER_IMU_SAMPLE_NODE
 
 
-def validate_scenario(scenario) -> None:
+def validate_scenario(scenario: Scenario) -> None:
     """Check the cross-section and physical sense of a scenario (see the module notes)."""
     timing = scenario.timing
     nyquist = 0.5 / timing.imu_period_s
@@ -83,7 +87,7 @@ def validate_scenario(scenario) -> None:
                           f"{avail / 2**30:.3g} GiB available)", timing.imu_period_s)
 
 
-def check_seed(seed, field: str = "seed"):
+def check_seed(seed: SupportsIndex | None, field: str = "seed") -> int | None:
     """A seed is None (fresh entropy) or an integer >= 0 (numpy's SeedSequence)."""
     if seed is None:
         return None
@@ -94,7 +98,7 @@ def check_seed(seed, field: str = "seed"):
     return int(seed)
 
 
-def check_steps(n_steps, scenario, field: str = "chunk") -> int:
+def check_steps(n_steps: SupportsIndex, scenario: Scenario, field: str = "chunk") -> int:
     """A positive whole number of navigation steps whose IMU samples fit in memory."""
     if isinstance(n_steps, bool) or not hasattr(n_steps, "__index__") or int(n_steps) < 1:
         raise ConfigError(field, "a positive whole number of navigation steps", n_steps)
