@@ -31,6 +31,7 @@ from .types import (
     MeasurementBatch,
     Prior,
 )
+from .validation import check_episode_memory
 
 __all__ = ["make_context", "measurements", "measurement_batch", "step_batch", "EpisodeRecord", "EpisodeRecorder",
            "run_episode"]
@@ -182,6 +183,7 @@ class EpisodeRecorder:
     """
 
     def __init__(self, n_steps: int, truth_of: EpisodeRecorder | None = None) -> None:
+        check_episode_memory(n_steps)  # before any allocation (ConfigError with the estimate)
         self.n = n_steps
         self.owns_truth = truth_of is None
         if truth_of is None:

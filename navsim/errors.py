@@ -4,6 +4,9 @@ Every error raised on bad input derives from :class:`NavsimError`, and the ones 
 values also from :class:`ValueError`, so ``except ValueError`` keeps working for callers
 that do not know navsim. Messages name the argument, what was expected and what came.
 
+A setting navsim accepts but whose consequence a user may not intend (a documented default
+filled in) is a :class:`NavsimWarning` (the CLI prints it as one ``navsim: warning:`` line).
+
 Missing data (a GNSS outage, a satellite below the mask) is *not* an error: it is a value
 with a validity mask.
 """
@@ -17,6 +20,7 @@ __all__ = [
     "ConfigError",
     "TrackError",
     "DependencyNotInstalled",
+    "NavsimWarning",
     "check_positive",
     "check_nonnegative",
     "check_multiple",
@@ -50,6 +54,10 @@ class ConfigError(NavsimError, ValueError):
         self.source = source
         where = f"{source}: " if source else ""
         super().__init__(f"{where}{field}: expected {expected}, got {got!r}")
+
+
+class NavsimWarning(UserWarning):
+    """An accepted input with a consequence worth a word (a documented default used)."""
 
 
 class TrackError(NavsimError, ValueError):

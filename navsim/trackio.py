@@ -32,6 +32,13 @@ Heights are taken as heights above the chosen Earth model (GPX elevations are us
 above mean sea level; the difference, the geoid undulation, is a near-constant offset
 over a track and does not matter to the simulation).
 
+Heights are optional in every format (a CSV without a height column, GeoJSON ``[lon,
+lat]`` positions, GPX points without ``<ele>``): they are then 0 m above the Earth
+model, a track without grade, and the reader warns (:class:`~navsim.errors.NavsimWarning`,
+one ``navsim: warning:`` line in the CLI) that the heights were filled in, because a
+forgotten column changes the physics (grade, gravity) without an error. Mixing points
+with and without a height is refused.
+
 Malformed input raises :class:`~navsim.errors.ConfigError` (a field is wrong: names the
 file and the point, line or key) or :class:`~navsim.errors.TrackError` (the geometry is
 unusable: too few points, duplicate consecutive points).
@@ -59,7 +66,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .earth import EarthModel, earth_model
-from .errors import ConfigError, TrackError, file_value
+from .errors import ConfigError, NavsimWarning, TrackError, file_value
 from .track import CantModel, PolynomialTrack, SplineTrack, TrackSegment
 
 if TYPE_CHECKING:  # type hints only
@@ -187,6 +194,8 @@ def read_geojson(path: str | os.PathLike) -> Waypoints:
         h[i] = _number(pos[2], labels[i] + "[2]", source, "height, m") if len(pos) == 3 else 0.0
     if len(dims) > 1:
         raise ConfigError("geometry.coordinates", "all positions with a height, or none", "a mix", source)
+    if dims == {2}:
+        _no_heights(source, "[lon, lat] positions without a height")
     if not isinstance(properties, dict):
         raise ConfigError("properties", "an object", file_value(properties), source)
     segments = properties.get("segments", [])
@@ -250,6 +259,8 @@ def read_gpx(path: str | os.PathLike) -> Waypoints:
     if any(has_ele) and not all(has_ele):
         i = has_ele.index(False)
         raise ConfigError(f"{labels[i]} <ele>", "an elevation on every point, or on none", None, source)
+    if n and not any(has_ele):
+        _no_heights(source, "no <ele> on its points")
     names = [el.text for el in root.iter() if el.tag.rsplit("}", 1)[-1] == "name" and el.text]
     props = {"name": names[0]} if names else {}
     return _finish(lat, lon, h, labels, source, (), props)
@@ -269,6 +280,14 @@ def write_gpx(path: str | os.PathLike, lat: ArrayLike, lon: ArrayLike, h: ArrayL
         pt = ET.SubElement(seg, f"{{{ns}}}trkpt", {"lat": f"{a:.11f}", "lon": f"{b:.11f}"})
         ET.SubElement(pt, f"{{{ns}}}ele").text = f"{c:.5f}"
     ET.ElementTree(gpx).write(path, encoding="utf-8", xml_declaration=True)
+
+
+def _no_heights(source: str, what: str) -> None:
+    """The warning of a track file without heights (the documented default: 0 m)."""
+    import warnings
+
+    warnings.warn(f"track file {Path(source).name}: {what}; heights taken as 0 m above the Earth model "
+                  "(a track without grade)", NavsimWarning, stacklevel=3)
 
 
 # ---------------------------------------------------------------- CSV
@@ -295,6 +314,8 @@ def read_csv(path: str | os.PathLike) -> Waypoints:
             cols[key] = found[0]
         elif key != "h":
             raise ConfigError(f"line {lines[0][0]} (header)", f"a column named one of {list(names)}", file_value(rows[0]), source)
+    if "h" not in cols:
+        _no_heights(source, f"no height column (one of {list(_ALIASES['h'])})")
     n = len(rows) - 1
     lat, lon, h = np.empty(n), np.empty(n), np.zeros(n)
     labels = []

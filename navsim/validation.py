@@ -12,8 +12,23 @@ Refused (:class:`~navsim.errors.ConfigError`, naming the field, the expectation,
 * a body oscillation at or above the IMU's Nyquist frequency ``1 / (2 imu_period_s)``:
   the sampled increments alias it to another frequency (Shannon);
 * an outage window starting before the episode (``t < 0`` does not exist);
-* a navigation step whose IMU samples need more memory than the machine has available
+* an IMU period whose truth-generator block matrices need more memory than the machine
+  has (:func:`truth_block_bytes`: a block of ``round(1 s / imu_period_s)`` samples fitted
+  with 32 Chebyshev nodes, the matrices of :func:`navsim.truthgen._run_matrices`);
+* a navigation step whose IMU samples need more memory than the machine has
   (estimate: :data:`BYTES_PER_IMU_SAMPLE_NODE` per sample and quadrature node).
+
+"What the machine has" is its physical memory (:func:`machine_memory_bytes`:
+``os.sysconf('SC_PHYS_PAGES') * os.sysconf('SC_PAGE_SIZE')``, else ``MemTotal`` of
+/proc/meminfo; no check where neither exists): a fixed figure, so the same scenario is
+refused or accepted whatever else runs at the time. Both estimates are made from the
+scenario's numbers before anything is allocated.
+
+:func:`check_episode_memory` refuses an episode whose record (truth and estimates of
+every step, kept by :class:`~navsim.episode.EpisodeRecorder` for scoring: ``navsim run``,
+``bench``, campaigns, the Gymnasium envs, the FMU master) would not fit
+(:data:`EPISODE_BYTES_PER_STEP` per navigation step); streaming faces (``navsim
+simulate``, the plant FMU) keep no record and are not limited by the episode length.
 
 A window after the episode end is accepted without a word: shortening a scenario
 (``--set timing.duration_s=60``) is the usual way to run the start of an episode.
@@ -33,7 +48,8 @@ from .errors import ConfigError
 if TYPE_CHECKING:  # type hints only
     from .scenario import Scenario
 
-__all__ = ["validate_scenario", "check_seed", "check_steps", "available_memory_bytes", "BYTES_PER_IMU_SAMPLE_NODE"]
+__all__ = ["validate_scenario", "check_seed", "check_steps", "check_episode_memory", "machine_memory_bytes",
+           "truth_block_bytes", "BYTES_PER_IMU_SAMPLE_NODE", "EPISODE_BYTES_PER_STEP"]
 
 BYTES_PER_IMU_SAMPLE_NODE = 400
 """Working memory of the truth generator per IMU sample and quadrature node, bytes (an
@@ -41,24 +57,59 @@ upper estimate: position, velocity, attitude and their rates at each node, the m
 integrals and the sensor-error arrays of the sample, in float64 with temporaries)."""
 
 
-def available_memory_bytes() -> int | None:
-    """MemAvailable of /proc/meminfo (Linux), else the free physical pages, else None."""
+EPISODE_BYTES_PER_STEP = 4096
+"""Memory of an episode's record and scoring per navigation step, bytes (an upper
+estimate: twice the peak growth per step measured for lc-ekf and tc-ukf episodes: truth,
+estimates, covariances and the metrics' temporaries)."""
+
+
+def machine_memory_bytes() -> int | None:
+    """The machine's physical memory, bytes (``SC_PHYS_PAGES``, else /proc/meminfo
+    ``MemTotal``), or None where neither is available."""
+    try:
+        pages, size = int(os.sysconf("SC_PHYS_PAGES")), int(os.sysconf("SC_PAGE_SIZE"))
+        if pages > 0 and size > 0:
+            return pages * size
+    except (ValueError, OSError, AttributeError):
+        pass
     try:
         with open("/proc/meminfo", encoding="ascii") as fh:
             for line in fh:
-                if line.startswith("MemAvailable:"):
+                if line.startswith("MemTotal:"):
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
+    return None
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g} GiB"
 
 
 def _step_bytes(scenario: Scenario) -> int:
     timing = scenario.timing
     return timing.samples_per_step * scenario.imu.quadrature_nodes * BYTES_PER_IMU_SAMPLE_NODE
+
+
+def truth_block_bytes(scenario: Scenario) -> int:
+    """Bytes of the truth generator's block matrices for this scenario's IMU period.
+
+    A block spans ``m = max(1, round(block_s / h))`` samples fitted with ``n`` Chebyshev
+    nodes (the defaults of :class:`~navsim.truthgen.TruthGenerator`); the matrices hold
+    ``m (q + R + 1) n`` float64 values (the Gauss-Legendre basis of ``q = n // 2 + R + 2``
+    points per sample, the ``R`` integral rows and the sample-end row), counted twice
+    for the temporaries of their products.
+    """
+    import inspect
+
+    from .truthgen import TruthGenerator
+
+    params = inspect.signature(TruthGenerator).parameters
+    block_s, n = float(params["block_s"].default), int(params["cheb_nodes"].default)
+    m = max(1, round(block_s / scenario.timing.imu_period_s))
+    R = int(scenario.imu.orders)
+    q = n // 2 + R + 2
+    return 2 * 8 * m * (q + R + 1) * n
 
 
 def validate_scenario(scenario: Scenario) -> None:
@@ -78,13 +129,35 @@ def validate_scenario(scenario: Scenario) -> None:
             raise ConfigError(f"outages.windows_s[{i}]",
                               f"a window inside the episode [0, {timing.duration_s:g}] s (t < 0 does not exist)",
                               [start, end])
+    avail = machine_memory_bytes()
+    if avail is None:
+        return
+    block = truth_block_bytes(scenario)
+    if block > avail:
+        raise ConfigError("timing.imu_period_s",
+                          f"an IMU period whose truth generation fits in memory (a 1-s block of "
+                          f"{max(1, round(1.0 / timing.imu_period_s)):.3g} samples needs ~{_gib(block)}, "
+                          f"the machine has {_gib(avail)})", timing.imu_period_s)
     step = _step_bytes(scenario)
-    avail = available_memory_bytes()
-    if avail is not None and step > avail:
+    if step > avail:
         raise ConfigError("timing.imu_period_s",
                           f"an IMU period giving navigation steps that fit in memory (one step of "
-                          f"{timing.samples_per_step} samples needs ~{step / 2**30:.3g} GiB, "
-                          f"{avail / 2**30:.3g} GiB available)", timing.imu_period_s)
+                          f"{timing.samples_per_step} samples needs ~{_gib(step)}, the machine has {_gib(avail)})",
+                          timing.imu_period_s)
+
+
+def check_episode_memory(n_steps: SupportsIndex) -> None:
+    """Refuse an episode record of ``n_steps`` navigation steps that would not fit in the
+    machine's memory (:data:`EPISODE_BYTES_PER_STEP` per step); called by
+    :class:`~navsim.episode.EpisodeRecorder` before it allocates anything."""
+    avail = machine_memory_bytes()
+    n = int(n_steps)
+    need = n * EPISODE_BYTES_PER_STEP
+    if avail is not None and need > avail:
+        raise ConfigError("timing.duration_s / timing.nav_period_s",
+                          f"an episode whose record fits in memory ({n:.4g} navigation steps need "
+                          f"~{_gib(need)}, the machine has {_gib(avail)}; a shorter episode or a longer navigation "
+                          "step)", n)
 
 
 def check_seed(seed: SupportsIndex | None, field: str = "seed") -> int | None:
@@ -104,8 +177,8 @@ def check_steps(n_steps: SupportsIndex, scenario: Scenario, field: str = "chunk"
         raise ConfigError(field, "a positive whole number of navigation steps", n_steps)
     n = int(n_steps)
     need = min(n, scenario.timing.steps) * _step_bytes(scenario)
-    avail = available_memory_bytes()
+    avail = machine_memory_bytes()
     if avail is not None and need > avail:
-        raise ConfigError(field, f"a number of steps whose IMU samples fit in memory (~{need / 2**30:.3g} GiB "
-                                 f"needed, {avail / 2**30:.3g} GiB available; use fewer steps per chunk)", n)
+        raise ConfigError(field, f"a number of steps whose IMU samples fit in memory (~{_gib(need)} "
+                                 f"needed, the machine has {_gib(avail)}; use fewer steps per chunk)", n)
     return n

@@ -120,14 +120,92 @@ def test_steps_beyond_the_machine_memory_are_refused(monkeypatch):
     import navsim.validation as v
 
     sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 2.0}})
-    monkeypatch.setattr(v, "available_memory_bytes", lambda: 1000)  # a machine with 1 kB free
+    monkeypatch.setattr(v, "machine_memory_bytes", lambda: 1000)  # a machine with 1 kB
     with pytest.raises(ConfigError, match="timing.imu_period_s.*GiB"):
         validate_scenario(sc)
-    monkeypatch.setattr(v, "available_memory_bytes", lambda: 10 * v._step_bytes(sc))
+    monkeypatch.setattr(v, "machine_memory_bytes", lambda: 10 * max(v._step_bytes(sc), v.truth_block_bytes(sc)))
     validate_scenario(sc)
+    monkeypatch.setattr(v, "machine_memory_bytes", lambda: 10 * v._step_bytes(sc))  # chunks of up to 10 steps
     with pytest.raises(ConfigError, match="chunk.*fewer steps"):
         check_steps(100, sc)
     assert check_steps(5, sc) == 5
+
+
+def test_machine_memory_is_the_physical_memory():
+    import os
+
+    import navsim.validation as v
+
+    if not hasattr(os, "sysconf") or "SC_PHYS_PAGES" not in os.sysconf_names:
+        pytest.skip("no SC_PHYS_PAGES here")
+    assert v.machine_memory_bytes() == os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def test_a_nanosecond_tick_is_refused_for_its_memory_before_any_allocation(capsys):
+    """The battery's case: tick = IMU period = navigation step = 1e-9 s. The truth
+    generator's 1-s block would hold 1e9 samples: m (q + R + 1) n float64 values, counted
+    twice, far beyond any machine; refused in one line before anything is built."""
+    import navsim.validation as v
+
+    over = {"timing": {"duration_s": 1.0, "tick_s": 1e-9, "imu_period_s": 1e-9, "nav_period_s": 1e-9}}
+    sc_ok = load_scenario("paper-2012")
+    R, n = sc_ok.imu.orders, 32
+    assert v.truth_block_bytes(sc_ok) == 2 * 8 * 100 * (n // 2 + R + 2 + R + 1) * n  # 100 Hz: a block of 100 samples
+    with pytest.raises(ConfigError, match=r"timing.imu_period_s: expected an IMU period whose truth generation fits "
+                                          r"in memory \(a 1-s block of 1e\+09 samples"):
+        sc_ok.with_overrides(over)
+    code, err = _run(capsys, ["simulate", "paper-2012", "-q", "-o", "o.npz", *[
+        a for k, x in over["timing"].items() for a in ("--set", f"timing.{k}={x}")]])
+    _one_clear_line(code, err)
+
+
+def test_an_episode_record_beyond_the_machine_memory_is_refused(monkeypatch):
+    import navsim.validation as v
+    from navsim.episode import EpisodeRecorder
+
+    monkeypatch.setattr(v, "machine_memory_bytes", lambda: 100 * v.EPISODE_BYTES_PER_STEP)
+    monkeypatch.setattr(v, "truth_block_bytes", lambda sc: 0)  # only the record is too big on this machine
+    EpisodeRecorder(100)
+    with pytest.raises(ConfigError, match=r"an episode whose record fits in memory \(101 navigation steps need"):
+        EpisodeRecorder(101)
+    sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 1.01}})  # 101 steps of 0.01 s
+    assert sc.timing.steps == 101
+    from navsim import estimators
+    from navsim.episode import run_episode
+
+    with pytest.raises(ConfigError, match="timing.duration_s / timing.nav_period_s"):
+        run_episode(sc, estimators.make("gnss-ls"), seed=0)
+
+
+def test_a_track_file_without_heights_warns_and_takes_0_m(tmp_path, capsys):
+    """Heights are optional in every track format (documented in navsim.trackio): 0 m,
+    with a warning, because a forgotten column flattens the track without an error."""
+    import warnings
+
+    from navsim.errors import NavsimWarning
+    from navsim.trackio import read_csv, read_geojson, read_gpx
+
+    pts = [(55.0 + 0.001 * i, 37.0 + 0.0005 * i) for i in range(5)]
+    (tmp_path / "t.csv").write_text("lat_deg,lon_deg\n" + "".join(f"{a},{b}\n" for a, b in pts), encoding="utf-8")
+    (tmp_path / "t.geojson").write_text('{"type": "LineString", "coordinates": [%s]}' % ", ".join(
+        f"[{b}, {a}]" for a, b in pts), encoding="utf-8")
+    (tmp_path / "t.gpx").write_text("<gpx><trk><trkseg>" + "".join(
+        f'<trkpt lat="{a}" lon="{b}"/>' for a, b in pts) + "</trkseg></trk></gpx>", encoding="utf-8")
+    for reader, name in ((read_csv, "t.csv"), (read_geojson, "t.geojson"), (read_gpx, "t.gpx")):
+        with pytest.warns(NavsimWarning, match=rf"track file {name}: .*heights taken as 0 m"):
+            wp = reader(tmp_path / name)
+        assert (wp.h == 0.0).all()
+    (tmp_path / "h.csv").write_text("lat_deg,lon_deg,h_m\n" + "".join(f"{a},{b},150\n" for a, b in pts),
+                                    encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NavsimWarning)  # with heights: no warning
+        read_csv(tmp_path / "h.csv")
+    scen = _scenario_file(tmp_path, 'name = "t"\n[timing]\nduration_s = 1.0\n[track]\nfile = "t.csv"\n'
+                                    '[motion]\nspeed_mps = 5.0\n')
+    code, err = _run(capsys, ["simulate", scen, "-q", "-o", str(tmp_path / "o.npz")])
+    assert code == 0 and err == ["navsim: warning: track file t.csv: no height column (one of ['h_m', 'h', 'ele', "
+                                 "'elevation', 'elevation_m', 'alt', 'alt_m', 'altitude', 'height', 'height_m']); "
+                                 "heights taken as 0 m above the Earth model (a track without grade)"], err
 
 
 # ----------------------------------------------------------------------- property-based

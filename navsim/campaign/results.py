@@ -17,19 +17,22 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import ConfigError
-from .database import corrupt_database
+from .database import check_database, corrupt_database
 from .spec import CampaignSpec
 from .tasks import episode_tasks
 
 
 def read_rows(database: str | Path, spec: CampaignSpec | None = None) -> list[dict]:
     """Rows of the database as dicts (``scores`` / ``outages`` decoded, ``samples`` as
-    a float array); with ``spec`` only the episodes of that campaign."""
+    a float array); with ``spec`` only the episodes of that campaign. A file of another
+    schema or of a newer navsim is refused, an older score version warned about
+    (:func:`~navsim.campaign.database.check_database`)."""
     if not Path(database).is_file():
         raise ConfigError("campaign.database", "an existing campaign database", Path(database).name)
     con = sqlite3.connect(str(database), timeout=30.0)
     con.row_factory = sqlite3.Row
     try:
+        check_database(con, Path(database), resume=False)  # another schema or a newer navsim: refused
         rows = [dict(r) for r in con.execute("SELECT * FROM episodes ORDER BY id")]
     except sqlite3.DatabaseError as exc:
         raise corrupt_database(Path(database), exc) from None

@@ -1,13 +1,16 @@
 """The entry point :func:`main` and the one-line messages of expected failures
-(:func:`expected_failure`: bad input, I/O, a corrupt file; exit status 2).
+(:func:`expected_failure`: bad input, I/O, a corrupt file; exit status 2). navsim's warnings
+(:class:`~navsim.errors.NavsimWarning`) are printed as one `navsim: warning:` line each after a
+command that succeeds; after a failure the error is the one line.
 """
 
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
-from ..errors import NavsimError
+from ..errors import NavsimError, NavsimWarning
 from .parser import build_parser
 
 
@@ -39,8 +42,23 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, --version, or a bad argument (one line, status 2)
         return exc.code if isinstance(exc.code, int) else 2
+    noted: list[str] = []  # navsim's warnings: printed after a command that succeeds (an error is the one line)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", NavsimWarning)  # every time (deduplicated below), not once per place
+            _show = warnings.showwarning
+
+            def show(message, category, filename, lineno, file=None, line=None):
+                if issubclass(category, NavsimWarning):
+                    noted.append(" ".join(str(message).split()))
+                else:
+                    _show(message, category, filename, lineno, file, line)
+
+            warnings.showwarning = show
+            code = args.func(args)
+        for text in dict.fromkeys(noted):  # each once, in order
+            print(f"navsim: warning: {text}", file=sys.stderr)
+        return code
     except KeyboardInterrupt:
         print("navsim: interrupted", file=sys.stderr)
         return 130
