@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 import warnings
 from pathlib import Path
+from typing import TextIO
 
 from ..errors import NavsimError, NavsimWarning
 from .parser import build_parser
@@ -48,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.simplefilter("always", NavsimWarning)  # every time (deduplicated below), not once per place
             _show = warnings.showwarning
 
-            def show(message, category, filename, lineno, file=None, line=None):
+            def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                     file: TextIO | None = None, line: str | None = None) -> None:
                 if issubclass(category, NavsimWarning):
                     noted.append(" ".join(str(message).split()))
                 else:
