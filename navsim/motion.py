@@ -41,12 +41,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Protocol, Sequence
+from typing import TYPE_CHECKING, Literal, Protocol, Sequence, overload
 
 import numpy as np
 
 from .errors import ConfigError
 from .rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
+
+if TYPE_CHECKING:  # type hints only
+    from .track import Track
 
 __all__ = [
     "SpeedProfile",
@@ -90,7 +93,7 @@ class ConstantSpeed:
     amplitude: float = 0.0
     period: float = 300.0
 
-    def evaluate(self, t):
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = np.asarray(t, dtype=float)
         if self.amplitude == 0.0:
             return self.s0 + self.speed * t, np.full_like(t, self.speed), np.zeros_like(t)
@@ -111,18 +114,18 @@ class ConstantSpeed:
 
 # Raised-cosine acceleration ramp R(x) (0 -> 1 over x in [0, 1]) and its integrals; the
 # jerk R'(x) = (pi/2) sin(pi x) vanishes at both ends, so acceleration is C^1.
-def _ramp(x):
+def _ramp(x: np.ndarray) -> np.ndarray:
     xc = np.clip(x, 0.0, 1.0)
     return 0.5 * (1.0 - np.cos(np.pi * xc))
 
 
-def _ramp_int1(x):  # integral of R from 0 to x
+def _ramp_int1(x: np.ndarray) -> np.ndarray:  # integral of R from 0 to x
     xc = np.clip(x, 0.0, 1.0)
     inside = 0.5 * xc - np.sin(np.pi * xc) / (2.0 * np.pi)
     return inside + np.maximum(x - 1.0, 0.0)
 
 
-def _ramp_int2(x):  # integral of _ramp_int1 from 0 to x
+def _ramp_int2(x: np.ndarray) -> np.ndarray:  # integral of _ramp_int1 from 0 to x
     xc = np.clip(x, 0.0, 1.0)
     inside = 0.25 * xc**2 + (np.cos(np.pi * xc) - 1.0) / (2.0 * np.pi**2)
     beyond = np.maximum(x - 1.0, 0.0)
@@ -161,7 +164,7 @@ class Timetable:
     _event_steps: np.ndarray = field(init=False, repr=False)
     _end_time: float = field(init=False, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         stations = tuple(self.stations)
         if len(stations) < 2:
             raise ConfigError("motion.stations", "at least two stations", len(stations))
@@ -188,7 +191,7 @@ class Timetable:
         object.__setattr__(self, "_end_time", t)
         object.__setattr__(self, "_pieces", self._piecewise())
 
-    def _piecewise(self):
+    def _piecewise(self) -> tuple[np.ndarray, ...]:
         """The state at every breakpoint and the ramps active in each interval after it.
 
         Summing every ramp's closed form from t = 0 (as ``_sum_of_ramps`` does) adds
@@ -246,7 +249,8 @@ class Timetable:
                 v += F(c) * tj * (x / 2 - F(math.sin(math.pi * xf) / (2.0 * math.pi)))
         return float(s), float(v)
 
-    def _local(self, t, b0, s0, v0, a_done, t_ev, c_ev):
+    def _local(self, t: np.ndarray, b0: np.ndarray, s0: np.ndarray, v0: np.ndarray, a_done: np.ndarray, t_ev: np.ndarray,
+               c_ev: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """s, ds/dt, d2s/dt2 at t >= b0 within one interval, from the state at b0."""
         tj = self.jerk_time
         tau = t - b0
@@ -271,7 +275,7 @@ class Timetable:
         # by symmetry of the ramp, distance of a change 0 -> v is v * T / 2
         return 0.5 * v * (self._change(v, self.max_accel)[2] + self._change(v, self.max_decel)[2])
 
-    def _plan_leg(self, length: float):
+    def _plan_leg(self, length: float) -> tuple[list[float], list[float], float]:
         v = self.cruise_speed
         if self._stop_to_stop_distance(v) > length:
             lo, hi = 0.0, v
@@ -289,10 +293,10 @@ class Timetable:
         return times, steps, t_acc + cruise + t_dec
 
     # -- evaluation ------------------------------------------------------------------
-    def evaluate(self, t):
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """s, ds/dt, d2s/dt2 at times t (s), from the state at the last breakpoint."""
         t = np.asarray(t, dtype=float)
-        bounds, s0, v0, a_done, t_ev, c_ev = self._pieces
+        bounds, s0, v0, a_done, t_ev, c_ev = self._pieces  # type: ignore[attr-defined]  # set in __post_init__, not a field
         i = np.searchsorted(bounds, t, side="right") - 1
         before = i < 0  # the first dwell: at rest at the first station
         j = np.maximum(i, 0)
@@ -304,7 +308,7 @@ class Timetable:
             accel = np.where(before, 0.0, accel)
         return s, speed, accel
 
-    def _sum_of_ramps(self, t):
+    def _sum_of_ramps(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The same as :meth:`evaluate`, summing every ramp from t = 0 (a reference for
         tests: exact in exact arithmetic, noisier in floating point late in the run)."""
         t = np.asarray(t, dtype=float)
@@ -368,13 +372,13 @@ class ExternalMotion:
         self._n += 1
 
     def reset(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0) -> None:
-        self.__init__(t0, s0, speed0, accel0)
+        self.__init__(t0, s0, speed0, accel0)  # type: ignore[misc]  # a reset is a fresh construction
 
     @property
     def end_time(self) -> float:
         return float(self._tbuf[self._n - 1])
 
-    def evaluate(self, t):
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = np.asarray(t, dtype=float)
         knots = self._tbuf[: self._n]
         if t.size and (t.max() > knots[-1] + 1e-12 or t.min() < knots[0] - 1e-12):
@@ -442,7 +446,7 @@ class Oscillation:
     frequency: float  # Hz
     phase: float = 0.0  # rad
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.angle not in _ANGLES:
             raise ConfigError("motion.oscillations.angle", f"one of {_ANGLES}", self.angle)
         if not (self.frequency > 0 and math.isfinite(self.frequency)):
@@ -451,7 +455,8 @@ class Oscillation:
             raise ConfigError("motion.oscillations.amplitude", "a finite angle", self.amplitude)
 
 
-def _oscillation_offsets(oscillations: Sequence[Oscillation], t: np.ndarray):
+def _oscillation_offsets(oscillations: Sequence[Oscillation],
+                         t: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Angle offsets and their rates, each a dict angle -> array."""
     angles = {name: np.zeros_like(t) for name in _ANGLES}
     rates = {name: np.zeros_like(t) for name in _ANGLES}
@@ -498,7 +503,18 @@ class TrueState:
     velocity_e: np.ndarray
 
 
-def _kinematics(track, profile, oscillations, t, full: bool):
+@overload
+def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], t: np.ndarray,
+                full: Literal[True]) -> TrueState: ...
+
+
+@overload
+def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], t: np.ndarray,
+                full: Literal[False]) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], t: np.ndarray,
+                full: bool) -> TrueState | tuple[np.ndarray, np.ndarray]:
     from .earth import mat_en
     from .track import track_frame
 
@@ -537,11 +553,12 @@ def _kinematics(track, profile, oscillations, t, full: bool):
     )
 
 
-def true_state(track, profile: SpeedProfile, t, oscillations: Sequence[Oscillation] = ()) -> TrueState:
+def true_state(track: Track, profile: SpeedProfile, t: np.ndarray, oscillations: Sequence[Oscillation] = ()) -> TrueState:
     """The full true state at times ``t`` (s), vectorised. See the module docstring."""
     return _kinematics(track, profile, oscillations, t, full=True)
 
 
-def body_kinematics(track, profile: SpeedProfile, t, oscillations: Sequence[Oscillation] = ()):
+def body_kinematics(track: Track, profile: SpeedProfile, t: np.ndarray,
+                    oscillations: Sequence[Oscillation] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Only ``omega_ib_b`` and ``specific_force_b`` at times t: what the IMU integrates."""
     return _kinematics(track, profile, oscillations, t, full=False)

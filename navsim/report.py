@@ -36,7 +36,7 @@ import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -55,6 +55,11 @@ from .metrics import (
     score_episode,
 )
 from .provenance import provenance, provenance_line
+
+if TYPE_CHECKING:  # type hints only
+    from .episode import EpisodeRecord
+    from .scenario import Scenario
+    from .simulator import Chunk, Simulator, Start
 
 __all__ = [
     "add_run_parser",
@@ -94,7 +99,7 @@ _CACHE_LIMIT_BYTES = 1.5e9
 
 
 # ============================================================================ parsing
-def _toml_value(text: str):
+def _toml_value(text: str) -> Any:
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover
@@ -172,7 +177,7 @@ def _check_estimators(names: Sequence[str]) -> list[str]:
     return names
 
 
-def _load_scenario(args):
+def _load_scenario(args: argparse.Namespace) -> Scenario:
     from .overrides import scenario_from_args
 
     return scenario_from_args(args)
@@ -187,29 +192,29 @@ class _Replay:
     delegated to the real simulator.
     """
 
-    def __init__(self, sim, seed: int | None, chunk_steps: int):
+    def __init__(self, sim: Simulator, seed: int | None, chunk_steps: int):
         self._sim = sim
         self._seed = seed
         self._chunk_steps = chunk_steps
         self._start = sim.reset(seed)
         self._chunks = list(sim.chunks(chunk_steps))
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         return getattr(self._sim, name)
 
-    def reset(self, seed=None):
+    def reset(self, seed: int | None = None) -> Start:
         if seed != self._seed:
             raise RuntimeError(f"replay of seed {self._seed} asked for seed {seed}")
         return copy.deepcopy(self._start)
 
-    def chunks(self, chunk_steps: int = CHUNK_STEPS):
+    def chunks(self, chunk_steps: int = CHUNK_STEPS) -> Iterator[Chunk]:
         if chunk_steps != self._chunk_steps:
             raise RuntimeError(f"replay cached with chunks of {self._chunk_steps} steps, asked for {chunk_steps}")
         for chunk in self._chunks:
             yield copy.deepcopy(chunk)
 
 
-def _cache_bytes(scenario) -> float:
+def _cache_bytes(scenario: Scenario) -> float:
     """Rough memory of one cached episode (IMU multiple integrals dominate)."""
     timing = scenario.timing
     r = scenario.imu.orders
@@ -217,8 +222,8 @@ def _cache_bytes(scenario) -> float:
     return float(timing.steps) * per_step
 
 
-def run_one(scenario, estimator_name: str, seed: int | None, options: dict | None = None, *,
-            progress: Callable[[int], None] | None = None, simulator=None):
+def run_one(scenario: Scenario, estimator_name: str, seed: int | None, options: dict | None = None, *,
+            progress: Callable[[int], None] | None = None, simulator: Simulator | None = None) -> EpisodeRecord:
     """Build the estimator by name and run one episode; returns the EpisodeRecord."""
     from .episode import run_episode
     from .estimators import make
@@ -253,7 +258,7 @@ class BenchResult:
     mc_nees: dict[str, McNees | None] = field(default_factory=dict)
 
 
-def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: dict | None = None, *,
+def bench(scenario: Scenario, estimators: Sequence[str], seeds: Sequence[int], options: dict | None = None, *,
           method: str = "t", confidence: float = 0.95, divergence_threshold_m: float = 1000.0,
           divergence_nees_window_s: float = DIVERGENCE_NEES_WINDOW_S,
           progress: Callable[[int], None] | None = None, describe: Callable[[str], None] | None = None,
@@ -299,13 +304,14 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
                 describe(f"{name} seed {seed}")
             done = [0]
 
-            def tick(k, done=done):
+            def tick(k: int, done: list[int] = done) -> None:
                 done[0] += k
                 if progress is not None:
                     progress(k)
 
             try:
-                record = run_one(scenario, name, seed, _options_for(options, name), progress=tick, simulator=source)
+                record = run_one(scenario, name, seed, _options_for(options, name), progress=tick,
+                                 simulator=source)  # type: ignore[arg-type]  # a _Replay delegates to the Simulator
                 series = error_series(record, track)
                 score = score_episode(record, series=series, divergence_threshold_m=divergence_threshold_m,
                                       divergence_nees_window_s=divergence_nees_window_s)
@@ -334,7 +340,7 @@ def bench(scenario, estimators: Sequence[str], seeds: Sequence[int], options: di
 
 
 # ============================================================================ formatting
-def _fmt(value, width: int = 0) -> str:
+def _fmt(value: Any, width: int = 0) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         text = "-"
     elif isinstance(value, (bool, np.bool_)):
@@ -410,12 +416,12 @@ def bench_markdown(result: BenchResult, metrics: Sequence[str] | None = None) ->
     for m in metrics:
         cells = [format_cell(result.summary[n][m]) for n in names]
         lines.append(f"| {m} | {units[m]} | " + " | ".join(cells) + " |")
-    mc = [(n, result.mc_nees.get(n)) for n in names if result.mc_nees.get(n) is not None]
+    mc = [(n, mcn) for n in names if (mcn := result.mc_nees.get(n)) is not None]
     if mc:
         lines += ["", "Monte Carlo NEES (average over seeds per step, 95 % bounds chi2(M d)/M):", ""]
-        for n, m in mc:
-            lines.append(f"- {n}: d = {m.dof}, time-average {_fmt(m.anees)}, "
-                         f"steps inside the bounds {_fmt(100 * m.in_bounds_fraction)} %")
+        for n, mcn in mc:
+            lines.append(f"- {n}: d = {mcn.dof}, time-average {_fmt(mcn.anees)}, "
+                         f"steps inside the bounds {_fmt(100 * mcn.in_bounds_fraction)} %")
     diverged = [(n, seed, sc) for n in names for seed, sc in sorted(result.scores.get(n, {}).items()) if sc.diverged]
     if diverged:
         lines += ["", "Diverged runs:", ""]
@@ -494,7 +500,7 @@ def bench_json(result: BenchResult) -> dict:
     }
 
 
-def _json_float(x: float):
+def _json_float(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
@@ -526,13 +532,13 @@ def write_bench(result: BenchResult, out_dir: str | Path, plots: bool = True) ->
 
 
 # ============================================================================ commands
-def _bar(total: int, quiet: bool, desc: str):
+def _bar(total: int, quiet: bool, desc: str) -> Any:
     from tqdm import tqdm
 
     return tqdm(total=total, unit="step", disable=quiet or None, desc=desc, file=sys.stderr, leave=False)
 
 
-def cmd_run(args) -> int:
+def cmd_run(args: argparse.Namespace) -> int:
     """``navsim run``: one estimator on one episode."""
     scenario = _load_scenario(args)
     name = _check_estimators([args.estimator])[0]
@@ -568,7 +574,7 @@ def cmd_run(args) -> int:
     return 0
 
 
-def cmd_bench(args) -> int:
+def cmd_bench(args: argparse.Namespace) -> int:
     """``navsim bench``: every estimator on every seed, table across estimators."""
     scenario = _load_scenario(args)
     names = _check_estimators(args.estimators.split(","))
@@ -609,7 +615,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
-def add_run_parser(subparsers) -> argparse.ArgumentParser:
+def add_run_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``navsim run`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("run", help="run one estimator on one episode and score it")
     _common(p)
@@ -622,7 +628,7 @@ def add_run_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def add_bench_parser(subparsers) -> argparse.ArgumentParser:
+def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``navsim bench`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("bench", help="every estimator on every seed, compared")
     _common(p)

@@ -84,7 +84,7 @@ class TimingConfig:
     gnss_period_s: float = 1.0
     duration_s: float = 1000.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_positive("timing.tick_s", self.tick_s)
         check_multiple("timing.imu_period_s", self.imu_period_s, self.tick_s, "timing.tick_s")
         check_multiple("timing.nav_period_s", self.nav_period_s, self.imu_period_s, "timing.imu_period_s")
@@ -132,7 +132,7 @@ class TrackConfig:
     cant_max_deg: float = 6.0
     smoothing_m: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if bool(self.bundled) == bool(self.file):
             raise ConfigError("track", "exactly one of track.bundled or track.file", {"bundled": self.bundled, "file": self.file})
         if self.bundled and (any(c in self.bundled for c in "/\\:") or self.bundled.startswith(".")):
@@ -194,7 +194,7 @@ class MotionConfig:
     jerk_time_s: float = 2.0
     oscillations: tuple[OscillationConfig, ...] = ()
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.profile not in ("constant", "timetable", "external"):
             raise ConfigError("motion.profile", "one of 'constant', 'timetable', 'external'", self.profile)
         if self.profile == "timetable" and len(self.stations) < 2:
@@ -224,7 +224,7 @@ class ImuConfig:
     gyro: dict = field(default_factory=dict)
     accel: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not 1 <= self.orders <= 6:
             raise ConfigError("imu.orders", "an integer in 1..6", self.orders)
         if not 1 <= self.quadrature_nodes <= 16:
@@ -254,7 +254,7 @@ class GnssConfig:
     overrides: dict = field(default_factory=dict)
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         arm = self.lever_arm_m
         if isinstance(arm, (str, bytes)) or not hasattr(arm, "__len__") or len(arm) != 3:
             raise ConfigError("gnss.lever_arm_m", "three numbers [x right, y forward, z up], m", arm)
@@ -288,7 +288,7 @@ class OdometerConfig:
     preset: str = "rail-tachometer"
     overrides: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.preset not in _ODOMETER_PRESETS:
             raise ConfigError("odometer.preset", f"one of {_ODOMETER_PRESETS}", self.preset)
         self.model()  # validates the overrides
@@ -321,7 +321,7 @@ class InitialUncertainty:
     velocity_mps: float = 0.1
     attitude_deg: float = 0.1
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("position_m", "velocity_mps", "attitude_deg"):
             value = getattr(self, name)
             if not (value >= 0 and math.isfinite(value)):
@@ -355,7 +355,7 @@ class Scenario:
     baro: BaroConfig = BaroConfig()
     base_dir: str = ""  # folder that relative file names refer to (not serialised)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.earth not in ("spherical", "wgs84"):
             raise ConfigError("earth", "one of 'spherical', 'wgs84'", self.earth)
 
@@ -525,11 +525,11 @@ def _deep_merge(base: dict, overrides: dict) -> dict:
     return merged
 
 
-def _type_name(tp) -> str:
+def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
-def _convert(tp, value, path: str):
+def _convert(tp: Any, value: Any, path: str) -> Any:
     origin = typing.get_origin(tp)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
@@ -577,7 +577,7 @@ def _convert(tp, value, path: str):
     raise TypeError(f"unsupported config type {tp!r} at {path}")  # programming error
 
 
-def _from_dict(cls, data: dict, prefix: str, exclude: tuple[str, ...] = ()):
+def _from_dict(cls: Any, data: dict, prefix: str, exclude: tuple[str, ...] = ()) -> Any:
     hints = typing.get_type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls) if f.init and f.name not in exclude]
     for key in data:
@@ -592,7 +592,7 @@ def _from_dict(cls, data: dict, prefix: str, exclude: tuple[str, ...] = ()):
     return cls(**kwargs)
 
 
-def _to_dict(obj) -> Any:
+def _to_dict(obj: Any) -> Any:
     if dataclasses.is_dataclass(obj):
         return {f.name: _to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.init}
     if isinstance(obj, (tuple, list)):

@@ -68,7 +68,7 @@ class CampaignSpec:
     divergence_threshold_m: float = 1000.0
     interval: str = "t"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not self.scenarios:
             raise ConfigError("scenarios", "at least one [[scenarios]] entry", [])
         if not self.estimators:
