@@ -1,6 +1,6 @@
 """Static checks of the package as part of the test command: ruff (rules and line length in
-pyproject.toml, [tool.ruff]) on navsim, envs and fmu, mypy (configuration and its
-documented per-module exceptions in pyproject.toml, [tool.mypy]), and an AST walk that
+pyproject.toml, [tool.ruff]) on navsim, envs and fmu, mypy on the same three (configuration
+and its documented per-module exceptions in pyproject.toml, [tool.mypy]), and an AST walk that
 fails on a public function or method without annotations or a dataclass field typed as
 bare ``object`` (the annotation claim of the README, kept from rotting)."""
 
@@ -33,7 +33,7 @@ def test_ruff_is_clean_on_the_package():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
-def test_mypy_passes_on_the_core_package(tmp_path):
+def test_mypy_passes_on_the_package_and_its_faces(tmp_path):
     out = subprocess.run([*_tool("mypy"), "--cache-dir", str(tmp_path / "mypy_cache")], cwd=ROOT,
                          capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stdout + out.stderr
