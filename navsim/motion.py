@@ -61,6 +61,7 @@ __all__ = [
     "TrueState",
     "true_state",
     "body_kinematics",
+    "truth_channels",
 ]
 
 
@@ -513,8 +514,13 @@ def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Osci
                 full: Literal[False]) -> tuple[np.ndarray, np.ndarray]: ...
 
 
+@overload
 def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], t: np.ndarray,
-                full: bool) -> TrueState | tuple[np.ndarray, np.ndarray]:
+                full: Literal["channels"]) -> tuple[np.ndarray, ...]: ...
+
+
+def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], t: np.ndarray,
+                full: bool | str) -> TrueState | tuple[np.ndarray, ...]:
     from .earth import mat_en
     from .track import track_frame
 
@@ -544,6 +550,9 @@ def _kinematics(track: Track, profile: SpeedProfile, oscillations: Sequence[Osci
     f_b = np.einsum("...ji,...j->...i", mat_nb, f_n)
     if not full:
         return omega_ib_b, f_b
+    if full == "channels":  # navsim.truthgen's fitted channels: no ECEF position and velocity
+        return (omega_ib_b, f_b, velocity_n, s, speed, accel, frame.lat, frame.lon, frame.h,
+                heading, pitch, roll)
     position_e = earth.geodetic_to_ecef(frame.lat, frame.lon, frame.h)
     velocity_e = np.einsum("...ji,...j->...i", mat_en(frame.lat, frame.lon), velocity_n)
     return TrueState(
@@ -562,3 +571,12 @@ def body_kinematics(track: Track, profile: SpeedProfile, t: np.ndarray,
                     oscillations: Sequence[Oscillation] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Only ``omega_ib_b`` and ``specific_force_b`` at times t: what the IMU integrates."""
     return _kinematics(track, profile, oscillations, t, full=False)
+
+
+def truth_channels(track: Track, profile: SpeedProfile, t: np.ndarray,
+                   oscillations: Sequence[Oscillation] = ()) -> tuple[np.ndarray, ...]:
+    """The fields of :func:`true_state` that :mod:`navsim.truthgen` fits, at times t (s):
+    ``(omega_ib_b, specific_force_b, velocity_n, s, speed, accel_along, lat, lon, h, heading,
+    pitch, roll)``, the same arrays as those of :func:`true_state` (the ECEF position and
+    velocity and the time are not computed)."""
+    return _kinematics(track, profile, oscillations, t, full="channels")

@@ -106,8 +106,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from . import truthgen_kernel as _truth_kernel
 from .earth import mat_en
-from .motion import ExternalMotion, TrueState, body_kinematics, true_state
+from .motion import ExternalMotion, TrueState, body_kinematics, true_state, truth_channels
 from .rotations import mat_nb_from_hpr
 from .sensors.imu import multiple_integral_rule
 from .threads import limited
@@ -131,6 +132,7 @@ _NEWTON_STEPS = 4  # safeguarded Newton steps
 _MATRIX_CACHE: OrderedDict = OrderedDict()  # run matrices, see _run_matrices
 _MATRIX_CACHE_BYTES = 64 * 2**20
 _matrix_cache_bytes = 0
+USE_KERNEL = True  # sample-end truth by the compiled pass when numba is installed (navsim.truthgen_kernel)
 
 
 @dataclass(frozen=True, slots=True)
@@ -400,8 +402,8 @@ class TruthGenerator:
         b, h, R, nc = self.block, self.h, self.orders, self.cheb_nodes
         nb = len(ks)
         t0 = ks * b * h
-        state = true_state(self.track, self.profile, (t0[:, None] + self._tau[None, :]).ravel(), self.oscillations)
-        channels = _channels(_raw_channels(state), nb, nc)
+        raw = _raw_channels(self.track, self.profile, (t0[:, None] + self._tau[None, :]).ravel(), self.oscillations)
+        channels = _channels(raw, nb, nc)
         good = self._converged(np.matmul(self._coef_from_values, channels))
         ends = np.matmul(self._end_matrix, channels).reshape(nb * b, _N_CHANNELS)
         integ = np.matmul(self._int_matrix, channels[:, :, :6]).reshape(nb * b, R, 6)
@@ -461,7 +463,7 @@ class TruthGenerator:
             (direct_runs if n >= m * cost_direct else pending).append((s0, m, n))
         while pending:
             times = np.concatenate([s0 * h + self._run_matrices(m, n)[0] for s0, m, n in pending])
-            raw = _raw_channels(true_state(self.track, self.profile, times, self.oscillations))
+            raw = _raw_channels(self.track, self.profile, times, self.oscillations)
             groups: dict[tuple[int, int], list[int]] = {}
             offsets = np.cumsum([0] + [n for _, _, n in pending])
             for i, (_, m, n) in enumerate(pending):
@@ -525,15 +527,25 @@ class TruthGenerator:
                        used_block: np.ndarray) -> IdealSamples:
         """IdealSamples from fitted channel values at sample ends (n, 18) and integrals (n, R, 6)."""
         s, speed, accel, lat, lon, hgt, hd, pitch, roll = ends[:, 9:].T
-        hd = np.angle(np.exp(1j * hd))  # back to (-pi, pi]
         velocity_n = ends[:, 6:9]
         earth = self.track.earth
+        compiled = _truth_kernel.kernel() if USE_KERNEL else None
+        if compiled is not None:
+            # one pass per sample, the same expressions in the same order (bit for bit)
+            n = ends.shape[0]
+            hd, mat_nb = np.empty(n), np.empty((n, 3, 3))
+            position_e, velocity_e = np.empty((n, 3)), np.empty((n, 3))
+            compiled(ends, _truth_kernel.earth_constants(earth), hd, mat_nb, position_e, velocity_e)
+        else:
+            hd = np.angle(np.exp(1j * hd))  # back to (-pi, pi]
+            mat_nb = mat_nb_from_hpr(hd, pitch, roll)
+            position_e = earth.geodetic_to_ecef(lat, lon, hgt)
+            velocity_e = np.einsum("nji,nj->ni", mat_en(lat, lon), velocity_n)
         truth = TrueState(
             t=t_end, s=s, speed=speed, accel_along=accel, lat=lat, lon=lon,
             h=hgt, velocity_n=velocity_n, heading=hd, pitch=pitch, roll=roll,
-            mat_nb=mat_nb_from_hpr(hd, pitch, roll), omega_ib_b=ends[:, 0:3], specific_force_b=ends[:, 3:6],
-            position_e=earth.geodetic_to_ecef(lat, lon, hgt),
-            velocity_e=np.einsum("nji,nj->ni", mat_en(lat, lon), velocity_n),
+            mat_nb=mat_nb, omega_ib_b=ends[:, 0:3], specific_force_b=ends[:, 3:6],
+            position_e=position_e, velocity_e=velocity_e,
         )
         return IdealSamples(integ[..., 0:3], integ[..., 3:6], ends[:, 0:3], ends[:, 3:6], truth, used_block)
 
@@ -598,10 +610,11 @@ def _run_matrices(m: int, n: int, orders: int, h: float):
     return out
 
 
-def _raw_channels(state: TrueState) -> np.ndarray:
-    """The 18 interpolated channels at every evaluated time, (n, 18); heading as evaluated."""
-    return np.column_stack([state.omega_ib_b, state.specific_force_b, state.velocity_n]
-                           + [getattr(state, name) for name in _SCALAR_FIELDS])
+def _raw_channels(track, profile, t: np.ndarray, oscillations) -> np.ndarray:
+    """The 18 interpolated channels at times t, (n, 18); heading as evaluated (the fields
+    of :func:`navsim.motion.true_state`: omega_ib_b, specific_force_b, velocity_n, then
+    _SCALAR_FIELDS, in that order)."""
+    return np.column_stack(truth_channels(track, profile, t, oscillations))
 
 
 def _channels(raw: np.ndarray, nb: int, n: int) -> np.ndarray:
