@@ -64,18 +64,23 @@ def _evaluate(c, lat, h, ve, vn, vu):
 
 
 def run(c, start, quat_body, dv_body, ds_body, exact, trapezoid, dt, pos, vel, quat, comp):
-    """Integrate n steps; fills ``pos`` (n+1, 3), ``vel`` (n+1, 3), ``quat`` (n+1, 4), ``comp`` (3,).
+    """Integrate n steps; fills ``pos`` (3, n+1: rows lat, lon, h), ``vel`` (n+1, 3), ``quat`` (n+1, 4),
+    ``comp`` (3,).
 
     ``c`` from :func:`earth_constants`; ``start`` = (lat, lon, h, k_lat, k_lon, k_h, vE, vN,
     vU, q0, q1, q2, q3); ``ds_body`` is read only when ``exact``.
     """
+    # the constants as a tuple of floats: registers in the compiled loop (an array's loads
+    # cannot be hoisted past the stores into the outputs), so the Earth model's invariant
+    # subexpressions are computed once
+    c = (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
     lat, lon, h = start[0], start[1], start[2]
     k_lat, k_lon, k_h = start[3], start[4], start[5]
     ve, vn, vu = start[6], start[7], start[8]
     q0, q1, q2, q3 = start[9], start[10], start[11], start[12]
     half_dt, dt2_6, third = 0.5 * dt, dt * dt / 6.0, 1.0 / 3.0
     inv_dt = 1.0 / dt
-    pos[0, 0], pos[0, 1], pos[0, 2] = lat, lon, h
+    pos[0, 0], pos[1, 0], pos[2, 0] = lat, lon, h
     vel[0, 0], vel[0, 1], vel[0, 2] = ve, vn, vu
     quat[0, 0], quat[0, 1], quat[0, 2], quat[0, 3] = q0, q1, q2, q3
     rnh, reh, cl, wx, wy, wz, ge, gn, gu = _evaluate(c, lat, h, ve, vn, vu)
@@ -146,7 +151,7 @@ def run(c, start, quat_body, dv_body, ds_body, exact, trapezoid, dt, pos, vel, q
         q3 = n0 * a3 + n1 * a2 - n2 * a1 + n3 * a0
         s = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
         q0, q1, q2, q3 = q0 * s, q1 * s, q2 * s, q3 * s
-        pos[k + 1, 0], pos[k + 1, 1], pos[k + 1, 2] = lat, lon, h
+        pos[0, k + 1], pos[1, k + 1], pos[2, k + 1] = lat, lon, h
         vel[k + 1, 0], vel[k + 1, 1], vel[k + 1, 2] = ve, vn, vu
         quat[k + 1, 0], quat[k + 1, 1], quat[k + 1, 2], quat[k + 1, 3] = q0, q1, q2, q3
         rnh, reh, cl, wx, wy, wz, ge, gn, gu = _evaluate(c, lat, h, ve, vn, vu)
@@ -247,9 +252,9 @@ def one_step(c, k, dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, gyro_bias, accel
         half_sinc = math.sin(0.5 * angle) / angle
     quat_b[0, 0], quat_b[0, 1] = math.cos(0.5 * angle), half_sinc * ph0
     quat_b[0, 2], quat_b[0, 3] = half_sinc * ph1, half_sinc * ph2
-    pos, vel, quat, comp = np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 4)), np.empty(3)
+    pos, vel, quat, comp = np.empty((3, 2)), np.empty((2, 3)), np.empty((2, 4)), np.empty(3)
     _run(c, state, quat_b, dv_b, ds_b, True, False, dt, pos, vel, quat, comp)
-    lat, lon, h = pos[1, 0], pos[1, 1], pos[1, 2]
+    lat, lon, h = pos[0, 1], pos[1, 1], pos[2, 1]
     ve, vn, vu = vel[1, 0], vel[1, 1], vel[1, 2]
     q0, q1, q2, q3 = quat[1, 0], quat[1, 1], quat[1, 2], quat[1, 3]
     state[0], state[1], state[2] = lat, lon, h

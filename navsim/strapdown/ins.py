@@ -306,12 +306,12 @@ def _run_compiled(state: InsState, quat_body, dv_body, ds_body, rule: str | None
     n = len(dv_body)
     start = np.array([state.lat, state.lon, state.h, *state.compensation, *state.velocity_n, *state.quat_nb],
                      dtype=float)
-    pos, vel, quat, comp = np.empty((n + 1, 3)), np.empty((n + 1, 3)), np.empty((n + 1, 4)), np.empty(3)
+    pos, vel, quat, comp = np.empty((3, n + 1)), np.empty((n + 1, 3)), np.empty((n + 1, 4)), np.empty(3)
     exact = ds_body is not None
     compiled.kernel()(compiled.earth_constants(earth), start, np.ascontiguousarray(quat_body),
                       np.ascontiguousarray(dv_body), np.ascontiguousarray(ds_body) if exact else np.zeros((1, 3)),
                       exact, rule == "trapezoid", float(dt), pos, vel, quat, comp)
-    return InsSolution(pos[:, 0].copy(), pos[:, 1].copy(), pos[:, 2].copy(), vel, quat, tuple(comp.tolist()))
+    return InsSolution(pos[0], pos[1], pos[2], vel, quat, tuple(comp.tolist()))  # rows: lat, lon, h
 
 
 def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compensation, quat_body, dv_body,
