@@ -29,9 +29,11 @@ on disk) or None without numba. ``navsim.truthgen.USE_KERNEL`` switches it off.
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
+from navsim.earth import EarthModel
 from navsim.jit import available
 
 __all__ = ["available", "earth_constants", "kernel", "sample_end_state_into"]
@@ -41,13 +43,14 @@ __all__ = ["available", "earth_constants", "kernel", "sample_end_state_into"]
 _VN, _LAT, _LON, _H, _HEADING, _PITCH, _ROLL = 6, 12, 13, 14, 15, 16, 17
 
 
-def earth_constants(earth) -> np.ndarray:
+def earth_constants(earth: EarthModel) -> np.ndarray:
     """[a, e^2, 1 - e^2, flat] of an Earth model, as :func:`sample_end_state_into` takes them."""
     e2 = earth.e2
     return np.array([earth.a, e2, 1.0 - e2, 1.0 if earth.f == 0.0 else 0.0])
 
 
-def sample_end_state_into(ends, c, heading, mat_nb, position_e, velocity_e):
+def sample_end_state_into(ends: np.ndarray, c: np.ndarray, heading: np.ndarray, mat_nb: np.ndarray,
+                          position_e: np.ndarray, velocity_e: np.ndarray) -> None:
     """Write the wrapped heading (n,), mat_nb (n, 3, 3), position_e and velocity_e (n, 3).
 
     ends : (n, 18) fitted channel values at the sample ends (columns as in
@@ -91,7 +94,7 @@ def sample_end_state_into(ends, c, heading, mat_nb, position_e, velocity_e):
 _compiled: list = []
 
 
-def kernel():
+def kernel() -> Callable[..., None] | None:
     """:func:`sample_end_state_into` compiled by numba, or None without numba."""
     if not available():
         return None
