@@ -6,9 +6,11 @@ statuses with a log message. pythonfmu's C layer maps a ``False`` return of ``do
 to ``fmi2Discard`` and any Python exception to ``fmi2Fatal`` (after which the instance
 can only be freed); navsim therefore refuses a bad communication step with
 ``fmi2Discard`` and an error-category log message (the instance stays usable: retry with a
-valid step), and a bad parameter value with ``fmi2Fatal`` from
-``fmi2ExitInitializationMode`` and a message naming the parameter, the expectation and
-the value.
+valid step), and a bad parameter value with ``fmi2Error`` from
+``fmi2ExitInitializationMode`` and an error-category message naming the parameter, the
+expectation and the value (through the C guard, :func:`~navsim.fmu.runtime.refuse_through_guard`;
+the instance stays in initialisation mode: set a valid value and exit again, or reset;
+an FMU built without the guard answers ``fmi2Fatal`` with the same message).
 
 Generated FMUs contain a one-line slave script that subclasses :class:`PlantSlave` or
 :class:`EstimatorSlave` under the name pythonfmu's loader looks for.
@@ -21,6 +23,7 @@ from pythonfmu.enums import Fmi2Status
 
 from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, guard_embedded_exit
 from .runtime import mark_failed as _mark_failed
+from .runtime import refuse_through_guard as _refuse
 
 guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 
@@ -71,6 +74,8 @@ class _Slave(SlaveValues, Fmi2Slave):
         try:
             self.rt.exit_initialization_mode()
         except FmuError as exc:
+            if _refuse(self.rt, str(exc)):  # the C guard logs it, answers an error status; the instance stays usable
+                return
             self._fail(str(exc))
 
     def do_step(self, current_time: float, step_size: float) -> bool:

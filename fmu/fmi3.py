@@ -2,9 +2,10 @@
 
 As :mod:`navsim.fmu.fmi2`, with FMI 3 arrays for the per-channel GNSS signals and the
 3-vectors. ``do_step`` returns ``fmi3Error`` with an error-category log message for a
-bad communication step (the instance stays usable); a bad parameter value raises from
-``fmi3ExitInitializationMode``, which pythonfmu3's C layer reports as ``fmi3Fatal`` with
-the message.
+bad communication step (the instance stays usable); a bad parameter value gives
+``fmi3Error`` from ``fmi3ExitInitializationMode`` with the message, through the C guard
+as in FMI 2 (without the guard it raises, which pythonfmu3's C layer reports as
+``fmi3Fatal``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pythonfmu3.fmi3slave import Fmi3StepResult
 
 from .runtime import EstimatorRuntime, FmuError, PlantRuntime, SlaveValues, guard_embedded_exit
 from .runtime import mark_failed as _mark_failed
+from .runtime import refuse_through_guard as _refuse
 
 guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 
@@ -49,6 +51,8 @@ class _Slave(SlaveValues, Fmi3Slave):
         try:
             self.rt.exit_initialization_mode()
         except FmuError as exc:
+            if _refuse(self.rt, str(exc)):  # the C guard logs it, answers an error status; the instance stays usable
+                return
             self._fail(str(exc))
 
     def do_step(self, current_time: float, step_size: float):

@@ -23,6 +23,13 @@ call to the shim, renamed ``<modelIdentifier>_pythonfmu.so`` beside it, after ch
   the episode start), any other start time is refused;
 * parameters (value references compiled in from the variable table) set after
   initialisation are refused (``reset`` first);
+* a bad parameter value: instead of raising, the slave passes its message (the
+  parameter, the expectation, the value) to the guard's exported
+  ``navsim_guard_refuse(msg)`` (:func:`navsim.fmu.runtime.refuse_through_guard`), and the
+  guard answers that ``exitInitializationMode`` with an error status (not pythonfmu's
+  Fatal) and logs the message itself (pythonfmu forwards messages only with logging on);
+  the instance stays in initialisation mode, so the host may set a valid value and call
+  it again, or reset;
 
 each refusal returns ``fmi2Error``/``fmi3Error`` and logs one error-category line
 through the host's logger. :func:`compile_guard` builds it with gcc (Linux); without a
@@ -126,6 +133,11 @@ typedef struct Guard {{
 static Guard* registry = NULL;
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 static void* shim = NULL;
+static __thread int refused = 0;  /* set by the slave (navsim_guard_refuse) during the call it refuses */
+static __thread char refused_msg[1024];
+
+void navsim_guard_refuse(const char* msg);
+void navsim_guard_refuse(const char* msg) {{ refused = 1; snprintf(refused_msg, sizeof refused_msg, "%s", msg ? msg : ""); }}
 
 static void* real(const char* name)
 {{
@@ -251,7 +263,12 @@ static int is_parameter(unsigned int vr)
                          "after initialisation (call reset first)\", {vr_arg}[i]);".replace("{vr_arg}", vr_arg),
                          f"                return {err};",
                          "            }"]
+            if short == "ExitInitializationMode":
+                body.append("    refused = 0;")
             body.append(f"    {ret} r = {ptr}({fwd});")
+            if short == "ExitInitializationMode":  # a bad parameter: error status, still in initialisation mode
+                body += ["    if (refused) {", "        refused = 0;", f"        say(g, 3, \"{name} refused: %s\", refused_msg);",
+                         f"        return {err};", "    }"]
             body.append("    if (r == 4) g->state = S_FATAL;")
             trans = {"EnterInitializationMode": "S_INIT", "ExitInitializationMode": "S_RUN", "Terminate": "S_TERM",
                      "Reset": "S_INST"}.get(short)

@@ -847,6 +847,35 @@ def guard_embedded_exit() -> bool:
 _FAILED: list = []
 
 
+_GUARD_LIBS: dict = {}
+
+
+def refuse_through_guard(rt, message: str) -> bool:
+    """Ask the FMU's C guard (:mod:`navsim.fmu.guard`) to answer the current
+    ``exitInitializationMode`` with an error status and ``message`` as its log line;
+    False when the FMU has no guard (then the caller raises: pythonfmu's Fatal status)."""
+    if not rt.meta.get("guard"):
+        return False
+    import ctypes
+
+    folder = Path(rt.resources).parent / "binaries"
+    libs = [p for p in sorted(folder.glob("*/*")) if p.suffix in (".so", ".dylib", ".dll")
+            and not p.stem.endswith("_pythonfmu")]
+    for path in libs:
+        key = str(path)
+        try:
+            if key not in _GUARD_LIBS:
+                _GUARD_LIBS[key] = ctypes.CDLL(key)  # the library the host loaded: the same handle
+        except OSError:  # another platform's binary
+            continue
+        hook = getattr(_GUARD_LIBS[key], "navsim_guard_refuse", None)
+        if hook is not None:
+            hook.argtypes, hook.restype = [ctypes.c_char_p], None
+            hook(message.encode("utf-8", "replace"))
+            return True
+    return False
+
+
 def mark_failed(slave) -> None:
     """Mark a slave (FMI 2 or 3) failed under the protocol above (idempotent)."""
     if not slave._failed:

@@ -14,6 +14,11 @@ traceback
     exception type, or no answer within the time limit;
 accepted
     the bad input went through without an error (exit status 0);
+warned
+    an input that is legitimate by the documentation but probably not meant (a case
+    marked ``expect="warning"``: a track file without heights, 0 m by the documented
+    default) went through with exit status 0 and one ``navsim: warning:`` line; the
+    same case without the warning is *accepted*;
 data-lost
     a file that existed before the call (a previous output) is gone, changed or
     half-written afterwards; this class wins over the others.
@@ -23,8 +28,12 @@ types, unknown keys), track files (degenerate, doubling back, corrupt, non-UTF-8
 (bundled names with separators, unreadable almanacs), CLI arguments, output paths blocked
 by a file in the way, corrupt campaign databases and specs, Gymnasium kwargs and actions,
 and the FMU's parameters through fmpy (skipped when fmpy or the FMU build is not
-available). The script prints a Markdown table (one row per case) and the counts per
-class. The test suite runs a sample of it (``tests/test_bad_inputs.py``).
+available). An FMU case is a clear error only when ``exitInitializationMode`` returns the
+error status (not Fatal) and the FMU's log holds one line with the parameter, the
+expectation and the value (the case's ``words``). The script prints a Markdown table (one row per case) and the counts per
+class. The default test suite runs a sample of it (``tests/test_bad_inputs.py``, one case or two
+per category; the FMU sample in ``tests/fmu/test_bad_parameters.py``) and the whole
+battery under the ``slow`` mark.
 """
 
 from __future__ import annotations
@@ -40,7 +49,6 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 CLI = "import sys\nfrom navsim.cli import main\nsys.exit(main(sys.argv[1:]))\n"
 
@@ -69,6 +77,7 @@ class Case:
     files: dict = field(default_factory=dict)  # name -> str | bytes written before the run
     keep: tuple = ()  # files that must survive unchanged (a previous output)
     timeout: float = 240.0
+    expect: str = "error"  # "error", or "warning": a documented default, accepted with one warning line
 
 
 def _scenario(extra: str, base: str = "paper-2012") -> str:
@@ -138,7 +147,9 @@ def cases() -> list[Case]:
         ("all points identical", "t.csv", "lat_deg,lon_deg,h_m\n" + "55.0,37.0,100\n" * 6),
         ("CSV with text in a cell", "t.csv", "lat_deg,lon_deg,h_m\n55.0,37.0,100\n55.01,north,100\n55.02,37.0,100\n"
                                              "55.03,37.0,100\n"),
-        ("CSV with a missing column", "t.csv", "lat_deg,lon_deg\n55.0,37.0\n55.01,37.0\n55.02,37.0\n55.03,37.0\n"),
+        ("CSV without a height column (0 m, warned)", "t.csv",
+         "lat_deg,lon_deg\n55.0,37.0\n55.01,37.0\n55.02,37.0\n55.03,37.0\n"),
+        ("CSV without a longitude column", "t.csv", "lat_deg,h_m\n55.0,100\n55.01,100\n55.02,100\n55.03,100\n"),
         ("CSV with latitude 95 deg", "t.csv", "lat_deg,lon_deg,h_m\n95.0,37.0,100\n95.01,37.0,100\n95.02,37.0,100\n"
                                               "95.03,37.0,100\n"),
         ("non-UTF-8 CSV", "t.csv", b"lat_deg,lon_deg,h_m\n55.0,37.0,100\xff\n"),
@@ -153,7 +164,8 @@ def cases() -> list[Case]:
     ]
     for name, fname, text in tracks:
         files = {"s.toml": _scenario(f'[track]\nbundled = ""\nfile = "{fname}"\n'), fname: text}
-        add(Case(name, "track file", "cli", ["simulate", "s.toml", "-q", "-o", "out.npz", *SHORT], files))
+        add(Case(name, "track file", "cli", ["simulate", "s.toml", "-q", "-o", "out.npz", *SHORT], files,
+                 expect="warning" if "warned" in name else "error"))
     # ------------------------------------------------------------------ CLI arguments
     cli = [
         ("--seed -1", ["simulate", "paper-2012", "--seed", "-1", "-q", "-o", "o.npz", *SHORT]),
@@ -225,6 +237,9 @@ def cases() -> list[Case]:
         ("database truncated after the header", {"c.toml": spec, "db.sqlite": b"SQLite format 3\x00" + b"\x10" * 84},
          ("db.sqlite",)),
         ("database with a foreign schema", {"c.toml": spec, "db.sqlite": "__SQLITE_FOREIGN__"}, ("db.sqlite",)),
+        ("database scored before the divergence check", {"c.toml": spec, "db.sqlite": "__SQLITE_SCORE_V1__"},
+         ("db.sqlite",)),
+        ("database of a newer navsim", {"c.toml": spec, "db.sqlite": "__SQLITE_NEWER__"}, ("db.sqlite",)),
         ("database path is a folder", {"c.toml": spec, "db.sqlite/x": "x"}, ()),
         ("spec of invalid TOML", {"c.toml": "[campaign\n"}, ()),
         ("spec non-UTF-8", {"c.toml": b"[campaign]\nname = \"\xff\"\n"}, ()),
@@ -295,18 +310,33 @@ def cases() -> list[Case]:
     for name, body in api:
         add(Case(name, "Python API / Gymnasium", "py", body))
     # ------------------------------------------------------------------ FMU parameters (fmpy)
-    fmu = [
-        ("FMU seed = -1", "{'seed': -1}"),
-        ("FMU scenario.overrides not TOML", "{'scenario.overrides': 'timing = ['}"),
-        ("FMU scenario.overrides bundled path", "{'scenario.overrides': 'track = { bundled = \"../../x\" }'}"),
-        ("FMU scenario.overrides duration -1", "{'scenario.overrides': 'timing = { duration_s = -1.0 }'}"),
-        ("FMU imu preset unknown", "{'imu.preset': 'magic'}"),
+    fmu = [  # (name, start values, words the FMU's log line must hold: parameter, expectation, value)
+        ("FMU seed = -1", "{'seed': -1}", ("seed: expected", "got -1")),
+        ("FMU scenario.overrides not TOML", "{'scenario.overrides': 'timing = ['}",
+         ("scenario.overrides: expected TOML", "got 'timing = [")),
+        ("FMU scenario.overrides bundled path", "{'scenario.overrides': 'track = { bundled = \"../../x\" }'}",
+         ("track.bundled: expected", "got '../../x'")),
+        ("FMU scenario.overrides duration -1", "{'scenario.overrides': 'timing = { duration_s = -1.0 }'}",
+         ("timing.duration_s: expected", "got -1.0")),
+        ("FMU imu preset unknown", "{'imu.preset': 'magic'}", ("imu.preset: expected", "got 'magic'")),
     ]
-    for name, params in fmu:
+    for name, params, words in fmu:
         body = ("import fmpy\nfrom pathlib import Path\n"
                 "fmu = Path(__FMU__)\n"
                 "if not fmu.exists():\n    sys.exit(77)\n"
-                f"res = fmpy.simulate_fmu(str(fmu), stop_time=0.05, step_size=0.01, start_values={params})\n")
+                "log = []\n"
+                "def logger(env, instance, status, category, message):\n"
+                "    log.append((status, message.decode('utf-8', 'replace')))\n"
+                "try:\n"
+                f"    fmpy.simulate_fmu(str(fmu), stop_time=0.05, step_size=0.01, start_values={params}, logger=logger)\n"
+                "except Exception as exc:\n"
+                "    lines = [m for st, m in log if st >= 3]\n"
+                f"    named = [m for m in lines if all(w in m for w in {words!r})]\n"
+                "    if getattr(exc, 'status', None) == 3 and len(lines) == 1 and named:\n"
+                "        print('CLEAR', named[0][:200], file=sys.stderr)\n"
+                "        sys.exit(2)\n"
+                "    print('FMU status', getattr(exc, 'status', None), 'log', lines, file=sys.stderr)\n"
+                "    raise\n")
         add(Case(name, "FMU parameter", "fmu", body))
     return c
 
@@ -333,10 +363,36 @@ def _write_files(folder: Path, files: dict, base_cache: dict) -> None:
             con.execute("CREATE TABLE meta (key TEXT, value TEXT)")
             con.commit()
             con.close()
+        elif content in ("__SQLITE_SCORE_V1__", "__SQLITE_NEWER__"):
+            _versioned_database(path, content)
         elif isinstance(content, bytes):
             path.write_bytes(content)
         else:
             path.write_text(content, encoding="utf-8")
+
+
+# the campaign table of navsim's layout (navsim/campaign/database.py), written here so the
+# battery also runs against trees that have no version keys
+_EPISODES = """CREATE TABLE episodes (id INTEGER PRIMARY KEY, scenario_hash TEXT NOT NULL, estimator TEXT NOT NULL,
+options TEXT NOT NULL, seed INTEGER NOT NULL, scenario TEXT NOT NULL, estimator_label TEXT NOT NULL,
+status TEXT NOT NULL, scores TEXT, outages TEXT, samples BLOB, error TEXT, wall_s REAL, worker TEXT,
+finished_utc TEXT NOT NULL, UNIQUE (scenario_hash, estimator, options, seed));
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+"""
+
+
+def _versioned_database(path: Path, kind: str) -> None:
+    """A campaign database with one finished row: of the navsim before the divergence check
+    (no version keys, no stored threshold) or of a newer navsim (score version 99)."""
+    con = sqlite3.connect(path)
+    con.executescript(_EPISODES)
+    con.execute("INSERT INTO episodes VALUES (1, 'h', 'gnss-ls', '{}', 0, 'paper-2012', 'gnss-ls', 'ok', "
+                "'{\"rmse_h_m\": 1.0}', '[]', NULL, NULL, 1.0, 'w', '2026-01-01T00:00:00+00:00')")
+    if kind == "__SQLITE_NEWER__":
+        con.executemany("INSERT INTO meta VALUES (?, ?)", [("format", "navsim-campaign"), ("schema_version", "1"),
+                                                         ("score_version", "99")])
+    con.commit()
+    con.close()
 
 
 def _merge_toml(base: str, extra: str) -> str:
@@ -395,8 +451,10 @@ def run_case(case: Case, root: Path, base_cache: dict, fmu_path: str | None) -> 
         cls, detail = "skipped", "no FMU"
     elif lost:
         cls, detail = "data-lost", f"changed or removed: {', '.join(lost)}"
+    elif rc == 0 and case.expect == "warning" and len(lines) == 1 and lines[0].startswith("navsim: warning:"):
+        cls, detail = "warned", lines[0][:160]
     elif rc == 0:
-        cls, detail = "accepted", "exit 0"
+        cls, detail = "accepted", "exit 0" + (" (no warning line)" if case.expect == "warning" else "")
     elif rc == 2 and "Traceback" not in err and (case.kind != "cli" or len(lines) == 1):
         cls, detail = "clear-error", lines[-1][:160] if lines else ""
     else:
@@ -418,7 +476,7 @@ def _build_fmu(root: Path) -> str | None:
     return str(out) if proc.returncode == 0 and out.exists() else None
 
 
-CLASSES = ("clear-error", "traceback", "accepted", "data-lost", "skipped")
+CLASSES = ("clear-error", "warned", "traceback", "accepted", "data-lost", "skipped")
 
 
 def markdown(results: list[dict]) -> str:
@@ -431,6 +489,23 @@ def markdown(results: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def main_results(jobs: int = 2, only: str = "", no_fmu: bool = False, progress: bool = False) -> list[dict]:
+    """Run the battery (the cases whose name contains ``only``); one result dict per case."""
+    todo = [c for c in cases() if only.lower() in c.name.lower()]
+    with tempfile.TemporaryDirectory(prefix="navsim-bad-inputs-") as tmp:
+        root = Path(tmp)
+        fmu_path = None if no_fmu or not any(c.kind == "fmu" for c in todo) else _build_fmu(root)
+        base_cache: dict = {"paper-2012": _base_text("paper-2012")}
+        results = []
+        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            for r in pool.map(lambda c: run_case(c, root, base_cache, fmu_path), todo):
+                results.append(r)  # each result as it comes, so an interrupted run keeps its part
+                if progress:
+                    print(f"{len(results)}/{len(todo)} {r['class']:11s} {r['category']}: {r['name']}: {r['detail']}",
+                          file=sys.stderr, flush=True)
+    return results
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--jobs", type=int, default=2)
@@ -438,19 +513,7 @@ def main(argv=None) -> int:
     p.add_argument("--json", default=None, help="also write the results as JSON here")
     p.add_argument("--no-fmu", action="store_true", help="skip the FMU cases")
     args = p.parse_args(argv)
-    todo = [c for c in cases() if args.only.lower() in c.name.lower()]
-    with tempfile.TemporaryDirectory(prefix="navsim-bad-inputs-") as tmp:
-        root = Path(tmp)
-        fmu_path = None if args.no_fmu or not any(c.kind == "fmu" for c in todo) else _build_fmu(root)
-        base_cache: dict = {}
-        _base = _base_text("paper-2012")
-        base_cache["paper-2012"] = _base
-        results = []
-        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for r in pool.map(lambda c: run_case(c, root, base_cache, fmu_path), todo):
-                results.append(r)  # each result as it comes, so an interrupted run keeps its part
-                print(f"{len(results)}/{len(todo)} {r['class']:11s} {r['category']}: {r['name']}: {r['detail']}",
-                      file=sys.stderr, flush=True)
+    results = main_results(args.jobs, args.only, args.no_fmu, progress=True)
     print(markdown(results), end="")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
