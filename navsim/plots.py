@@ -13,10 +13,14 @@ GNSS outages shaded (``navsim run --plot``); :func:`plot_bench_errors`,
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
 from .errors import DependencyNotInstalled
+
+if TYPE_CHECKING:  # type hints only
+    from .metrics import ErrorSeries, Outage
 
 __all__ = ["plot_episode", "plot_errors", "plot_bench_errors", "plot_outage_drifts", "plot_mc_nees"]
 
@@ -42,7 +46,7 @@ def _spans(t, flag):
     return [(t[a], t[b]) for a, b in zip(starts, ends)]
 
 
-def plot_episode(data, path: str | Path, title: str = "", max_points: int = 20_000) -> Path:
+def plot_episode(data: Mapping[str, np.ndarray], path: str | Path, title: str = "", max_points: int = 20_000) -> Path:
     """Write a 4-panel PNG of an episode given the arrays of :mod:`navsim.io`."""
     plt = _pyplot()
     t = np.asarray(data["t"])
@@ -107,7 +111,8 @@ def _band(ax, t, sigma, color, label=None) -> None:
     ax.plot(t, -3.0 * sigma, ls="--", lw=0.8, color=color)
 
 
-def plot_errors(series, path: str | Path, *, outages=(), title: str = "", max_points: int = 20_000) -> Path:
+def plot_errors(series: ErrorSeries, path: str | Path, *, outages: Sequence[Outage] = (), title: str = "",
+                max_points: int = 20_000) -> Path:
     """Write a 6-panel PNG of an estimator's errors against time.
 
     Panels: horizontal error with its 3-drms bound ``3 sqrt(P_EE + P_NN)``; vertical,
@@ -273,7 +278,7 @@ def plot_outage_drifts(per_seed: dict, path: str | Path, title: str = "", max_gr
     return _save(fig, plt, path)
 
 
-def plot_mc_nees(t, mc: dict, path: str | Path, title: str = "") -> Path:
+def plot_mc_nees(t: np.ndarray, mc: dict, path: str | Path, title: str = "") -> Path:
     """Monte Carlo NEES per estimator (PNG): average over seeds divided by its dimension
     d, with the 95 % bounds ``chi2(M d) / (M d)`` dashed (1 = consistent)."""
     plt = _pyplot()

@@ -527,7 +527,8 @@ def write_bench(result: BenchResult, out_dir: str | Path, plots: bool = True) ->
         paths.append(plot_outage_drifts(per_seed, out / "bench_outages.png", title=title))
         mc = {n: m for n, m in result.mc_nees.items() if m is not None}
         if mc:
-            paths.append(plot_mc_nees(result.mc_t, mc, out / "bench_nees.png", title=title))
+            paths.append(plot_mc_nees(result.mc_t, mc, out / "bench_nees.png",  # type: ignore[arg-type]  # set with mc_nees
+                                      title=title))
     return paths
 
 

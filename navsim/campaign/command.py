@@ -13,7 +13,7 @@ from .results import write_report
 from .spec import load_campaign
 
 
-def cmd_campaign(args) -> int:
+def cmd_campaign(args: argparse.Namespace) -> int:
     """``navsim campaign``: run what is missing, then write the report."""
     spec = load_campaign(args.spec)
     if not args.report_only:
@@ -29,7 +29,7 @@ def cmd_campaign(args) -> int:
     return 0
 
 
-def add_campaign_parser(subparsers) -> argparse.ArgumentParser:
+def add_campaign_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``navsim campaign`` on an argparse sub-parser collection."""
     p = subparsers.add_parser("campaign", help="Monte Carlo campaign from a TOML spec, locally or on a Dask cluster")
     p.add_argument("spec", help="campaign TOML file (results go to an SQLite database beside it)")

@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 from ..errors import ConfigError, DependencyNotInstalled
 from .database import finished_keys, open_database, store
@@ -123,7 +123,7 @@ def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeT
 DASK_RESUBMITS = 3  # times a lost episode result is resubmitted before it is stored as failed
 
 
-def _run_dask(todo: list[EpisodeTask], scheduler, handle: Callable[[EpisodeTask, dict], None],
+def _run_dask(todo: list[EpisodeTask], scheduler: str | Any, handle: Callable[[EpisodeTask, dict], None],
               timeout_s: float = 30.0) -> None:
     try:
         from distributed import Client, as_completed
@@ -186,7 +186,8 @@ class CampaignResult:
     wall_s: float = 0.0
 
 
-def run_campaign(spec: CampaignSpec, *, scheduler=None, workers: int | None = None, retry_failed: bool = False,
+def run_campaign(spec: CampaignSpec, *, scheduler: str | Any | None = None, workers: int | None = None,
+                 retry_failed: bool = False,
                  progress: bool = True, on_result: Callable[[EpisodeTask, dict], None] | None = None,
                  tasks: Sequence[EpisodeTask] | None = None) -> CampaignResult:
     """Run the episodes of the campaign not yet in its database.

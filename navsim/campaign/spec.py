@@ -11,9 +11,12 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
+from typing import TYPE_CHECKING, Iterable
 
 from ..errors import ConfigError, NavsimError
+
+if TYPE_CHECKING:  # type hints only
+    from ..scenario import Scenario
 
 SAMPLES_PER_EPISODE = 500
 """Horizontal-error samples kept per episode (evenly in time) for the distribution plots."""
@@ -37,7 +40,7 @@ class ScenarioEntry:
     :class:`~navsim.scenario.Scenario` and its configuration hash."""
 
     label: str
-    scenario: object
+    scenario: Scenario
     config_hash: str
 
 

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -13,7 +14,7 @@ from ..errors import NavsimError
 from ..overrides import scenario_from_args as _scenario
 
 
-def cmd_scenarios(args) -> int:
+def cmd_scenarios(args: argparse.Namespace) -> int:
     from ..scenario import list_scenarios, load_scenario
 
     for name in list_scenarios():
@@ -21,7 +22,7 @@ def cmd_scenarios(args) -> int:
     return 0
 
 
-def cmd_estimators(args) -> int:
+def cmd_estimators(args: argparse.Namespace) -> int:
     from ..estimators import describe
 
     infos = describe(args.names or None)
@@ -43,12 +44,12 @@ def cmd_estimators(args) -> int:
     return 0
 
 
-def cmd_show(args) -> int:
+def cmd_show(args: argparse.Namespace) -> int:
     print(_scenario(args).to_toml(), end="")
     return 0
 
 
-def cmd_simulate(args) -> int:
+def cmd_simulate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..io import check_output_dir, write_csv, write_npz
@@ -91,7 +92,7 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-def cmd_paper(args) -> int:
+def cmd_paper(args: argparse.Namespace) -> int:
     import importlib
 
     try:

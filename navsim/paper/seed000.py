@@ -75,8 +75,10 @@ References
 from __future__ import annotations
 
 import os
+from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..rotations import quat_from_rotvec, quat_multiply, quat_to_rotvec
 from ..strapdown import CONING, POSITION, SCULLING
@@ -162,7 +164,7 @@ def _sculling_inputs(name: str, motion: Motion, t_start, dt):
     return None, None, th, dv
 
 
-def fit_leading(x, y, order: int | None = None) -> tuple[float, float]:
+def fit_leading(x: np.ndarray, y: np.ndarray, order: int | None = None) -> tuple[float, float]:
     """Fit y = c x^p (1 + b x^2 + d x^4) for small x.
 
     Returns (slope, c): slope is the least-squares log-log slope over the three smallest
@@ -179,7 +181,7 @@ def fit_leading(x, y, order: int | None = None) -> tuple[float, float]:
 
 
 # ------------------------------------------------------------------ coning and sculling
-def coning_drift(name: str, x_values=_X_VALUES, half_angle: float = HALF_ANGLE) -> np.ndarray:
+def coning_drift(name: str, x_values: np.ndarray = _X_VALUES, half_angle: float = HALF_ANGLE) -> np.ndarray:
     """Relative computational drift eps / (sin(alpha)^2 W / 2) at W*DeltaT = x_values.
 
     eps = (Phi_alg - Phi_exact)_z / DeltaT, z = cone axis; Phi_exact = DeltaTheta +
@@ -197,7 +199,7 @@ def coning_drift(name: str, x_values=_X_VALUES, half_angle: float = HALF_ANGLE) 
     return np.array(out)
 
 
-def sculling_error(name: str, x_values=_X_VALUES) -> np.ndarray:
+def sculling_error(name: str, x_values: np.ndarray = _X_VALUES) -> np.ndarray:
     """Relative mean acceleration error dW / (theta0 a0 / 2) at W*DeltaT = x_values.
 
     dW = mean over the phase of t_k of (bracket_alg - bracket_exact)_z / DeltaT; the
@@ -283,7 +285,8 @@ _STEPS = np.array([0.2, 0.1, 0.05, 0.025, 0.0125])
 _STEPS_HIGH = np.array([0.4, 0.2, 0.1, 0.05])
 
 
-def local_errors(kind: str, name: str, steps=_STEPS, motion: Motion | None = None, t_start: float = 0.37):
+def local_errors(kind: str, name: str, steps: ArrayLike = _STEPS, motion: Motion | None = None,
+                 t_start: float = 0.37) -> np.ndarray:
     """Local error (alg - exact) vectors at t_start for each step: (len(steps), 3).
 
     kind is "coning", "sculling" or "position" (the partial increment dS_s of (5.4);
@@ -371,7 +374,8 @@ def position_motion(rotating: bool) -> Motion:
     return Motion(omega=omega, accel=accel)
 
 
-def position_errors(motion: Motion, steps, duration: float = 2.0, methods=None) -> dict[str, np.ndarray]:
+def position_errors(motion: Motion, steps: ArrayLike, duration: float = 2.0, methods: Sequence[str] | None = None) -> dict[str,
+                    np.ndarray]:
     """Norm of the final position error after ``duration`` for each method and step.
 
     The inputs V_i(k) and C(k) are exact (closed-form attitude, velocity by quadrature),
@@ -421,7 +425,7 @@ CLASS_OF = {
 }
 
 
-def pseudo_sculling_error(name: str, fbar, transposed: float = 0.3, theta0: float = 1e-3) -> np.ndarray:
+def pseudo_sculling_error(name: str, fbar: np.ndarray, transposed: float = 0.3, theta0: float = 1e-3) -> np.ndarray:
     """Relative systematic acceleration error dW / dW_ps (6.1) at relative frequencies fbar.
 
     Full navigation integration at f = 1 Hz (DeltaT = 1 s) of the harmonics
@@ -447,7 +451,7 @@ def pseudo_sculling_error(name: str, fbar, transposed: float = 0.3, theta0: floa
     return np.array(out)
 
 
-def pseudo_coning_drift(name: str, fbar, transposed: float = 0.4, alpha: float = 1e-4) -> np.ndarray:
+def pseudo_coning_drift(name: str, fbar: np.ndarray, transposed: float = 0.4, alpha: float = 1e-4) -> np.ndarray:
     """Relative drift eps / eps_pc (6.2) at relative frequencies fbar (= n + transposed).
 
     Gyro harmonics omega_x = -w0 sin(w_h t), omega_y = w0 cos(w_h t), w0 = alpha w_h,

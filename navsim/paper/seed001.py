@@ -53,6 +53,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..strapdown.quaternion import (
     error_angles,
@@ -84,13 +85,13 @@ TABLE1 = {
 }
 
 
-def rates(t) -> np.ndarray:
+def rates(t: ArrayLike) -> np.ndarray:
     """Body rates (12) with the paper's constants, rad/s, shape (..., 3)."""
     t = np.asarray(t, dtype=float)[..., None]
     return _AMPLITUDE * np.sin(2.0 * np.pi * _FREQUENCY * t)  # (12), A = B = phi = 0
 
 
-def increments(t_start, t_end) -> np.ndarray:
+def increments(t_start: ArrayLike, t_end: ArrayLike) -> np.ndarray:
     """Exact integrals of the rates (12) over [t_start, t_end], rad, shape (..., 3)."""
     t0 = np.asarray(t_start, dtype=float)[..., None]
     t1 = np.asarray(t_end, dtype=float)[..., None]

@@ -145,8 +145,12 @@ from __future__ import annotations
 import math
 import os
 import time
+from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 
 import numpy as np
+
+if TYPE_CHECKING:  # type hints only
+    from ..simulator import Chunk
 
 __all__ = ["run", "run_example"]
 
@@ -190,7 +194,7 @@ def _truth_state(ctx, chunks):
                           ctx.earth.rate)
 
 
-def gnss_epoch_times(chunks) -> np.ndarray:
+def gnss_epoch_times(chunks: Iterable[Chunk]) -> np.ndarray:
     """Times (s) of the GNSS epochs with at least one valid satellite."""
     out = []
     for c in chunks:
@@ -219,7 +223,8 @@ def _errors(res, yt):
     return e
 
 
-def run_example(seeds=(0, 1, 2), variants=None, duration_s: float | None = None, quick: bool = False):
+def run_example(seeds: Sequence[int] = (0, 1, 2), variants: Mapping[str, dict] | None = None, duration_s: float | None = None,
+                quick: bool = False) -> dict:
     """Run the example for several seeds and filter variants.
 
     Returns a dict: ``t``, ``truth`` (per seed, (n, 5)), ``runs[name]`` = list over seeds
@@ -395,7 +400,8 @@ def _printed_rows(ex) -> list[dict]:
     return rows
 
 
-def run(plot_dir: str | None = None, quick: bool = False, seeds=None, processes: int | None = None) -> list[dict]:
+def run(plot_dir: str | None = None, quick: bool = False, seeds: Sequence[int] | None = None,
+        processes: int | None = None) -> list[dict]:
     """Seed 003's experiments: the experiment table of the three claims
     (:mod:`navsim.paper.seed003_experiments`; default seeds 0-9, ``quick``: 2 seeds of a
     60-s run), the printed figures, the printed formulas (seed 0), the deterministic

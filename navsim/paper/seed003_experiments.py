@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from typing import Sequence
 
 import numpy as np
 
@@ -151,8 +152,9 @@ def _task(args):
     return key, seed, out
 
 
-def experiment(seeds=range(10), cov_step_s: float | None = 0.1, processes: int | None = None, quick: bool = False,
-               scenarios=None):
+def experiment(seeds: Sequence[int] = range(10), cov_step_s: float | None = 0.1, processes: int | None = None,
+               quick: bool = False,
+               scenarios: Sequence[str] | None = None) -> dict:
     """Run the matrix over seeds, in ``processes`` worker processes (default: up to 2).
 
     Returns ``{scenario key: {filter label: {"err": {metric: (n_seeds, 3) signed/abs
@@ -215,7 +217,7 @@ def _ref(key: str, label: str, instant: str) -> str:
             "full-state-ekf": "003 full-state filter"}.get(label, "003 lc-ekf")
 
 
-def experiment_rows(agg, cov_step_s) -> list[dict]:
+def experiment_rows(agg: dict, cov_step_s: float | None) -> list[dict]:
     """JSON rows ``{"ref", "quantity", "paper", "navsim", "unit"}`` (+ ``ci95``, ``max_abs``,
     ``mean``, ``se``, ``n_seeds``, ``values``): navsim = the mean |error| over the seeds."""
     rows = []
@@ -252,7 +254,7 @@ def _interval(agg, key, label, metric, j):
     return _stats(agg[key][label]["err"][metric][:, j])
 
 
-def verdicts(agg, cov_step_s) -> list[str]:
+def verdicts(agg: dict, cov_step_s: float | None) -> list[str]:
     """The verdict on each of the paper's three claims, from the numbers (plain sentences)."""
     out = []
     j_out, j_end = 1, 2
@@ -366,7 +368,7 @@ def deterministic_checks(duration_s: float = 100.0) -> list[dict]:
     return rows
 
 
-def table_markdown(agg) -> str:
+def table_markdown(agg: dict) -> str:
     """The experiment table (mean |error| [95 % interval], max) as Markdown."""
     lines = []
     metrics = ("latitude", "V_Y %", "gamma %", "tilt", "heading")

@@ -11,7 +11,7 @@ by Newton steps on the exact integral. The s-derivatives follow by the chain rul
 
 import copy
 import math
-from typing import Sequence
+from typing import Sequence, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -19,6 +19,8 @@ from numpy.typing import ArrayLike
 from ..earth import EarthModel
 from ..errors import ConfigError, TrackError
 from .base import CantModel, TrackSegment
+
+_Self = TypeVar("_Self", bound="ArcLengthTrack")  # the with_* copies keep the subclass
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _NEWTON_STEPS = 1
@@ -252,7 +254,7 @@ class ArcLengthTrack:
             out.append(TrackSegment(seg.kind, max(0.0, seg.s_start), min(self.length, seg.s_end), seg.name))
         return tuple(sorted(out, key=lambda g: (g.s_start, g.s_end)))
 
-    def with_cant_model(self, cant_model: CantModel):
+    def with_cant_model(self: _Self, cant_model: CantModel) -> _Self:
         """A copy of this track with another cant model (geometry shared)."""
         if not isinstance(cant_model, CantModel):
             raise ConfigError("cant_model", "a CantModel", cant_model)
@@ -260,13 +262,13 @@ class ArcLengthTrack:
         new.cant_model = cant_model
         return new
 
-    def with_segments(self, segments: Sequence[TrackSegment]):
+    def with_segments(self: _Self, segments: Sequence[TrackSegment]) -> _Self:
         """A copy of this track with other segments."""
         new = copy.copy(self)
         new.segments = new._check_segments(segments)
         return new
 
-    def with_earth(self, earth: EarthModel):
+    def with_earth(self: _Self, earth: EarthModel) -> _Self:
         """The same curve (same lat, lon, h functions) on another Earth model.
 
         The arc length changes with the metric, so the table is rebuilt and the segments

@@ -147,7 +147,7 @@ MAX_WAYPOINT_TURN_DEG = 150.0
 """Largest turn between consecutive waypoint chords; more is a track doubling back."""
 
 
-def check_waypoints(lat: ArrayLike, lon: ArrayLike, h: ArrayLike, name: str):
+def check_waypoints(lat: ArrayLike, lon: ArrayLike, h: ArrayLike, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     arrays = []
     for fld, value in (("lat", lat), ("lon", lon), ("h", h)):
         try:

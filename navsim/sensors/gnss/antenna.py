@@ -9,7 +9,8 @@ import numpy as np
 from ...earth import WGS84, EarthModel
 
 
-def antenna_state(position_e, velocity_e, mat_eb, omega_ib_b, lever_arm_b, earth: EarthModel = WGS84):
+def antenna_state(position_e: np.ndarray, velocity_e: np.ndarray, mat_eb: np.ndarray, omega_ib_b: np.ndarray,
+                  lever_arm_b: np.ndarray, earth: EarthModel = WGS84) -> tuple[np.ndarray, np.ndarray]:
     """ECEF position and ECEF-frame velocity of an antenna at a lever arm from the IMU.
 
     Parameters

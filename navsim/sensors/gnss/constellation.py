@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...earth import WGS84
 from ...errors import ConfigError
@@ -98,7 +99,7 @@ class Constellation:
         """Number of satellites m."""
         return int(self.prn.size)
 
-    def select(self, keep) -> Constellation:
+    def select(self, keep: ArrayLike) -> Constellation:
         """A sub-constellation: ``keep`` is a boolean mask (m,) or an index array."""
         keep = np.asarray(keep)
         return Constellation(
