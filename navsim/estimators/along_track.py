@@ -5,6 +5,7 @@ navigation state collapses to the arc length ``s`` along the track and the speed
 along it. :class:`AlongTrackFilter` is a small Kalman filter on
 
     x = [s (m), v (m/s), b (m/s^2)]            (+ [c_b (m), c_d (m/s)] receiver clock)
+                                               (+ [dI, dT] (m) zenith delays, option atmosphere)
 
 with ``b`` the bias of the along-track (body y) accelerometer. It reads only that one
 accelerometer: the design is gyro-free.
@@ -30,6 +31,24 @@ dynamics, with no Earth-rate, transport or coning term at all:
 
 Unmodelled body oscillations tilt the y axis off the tangent and leak about
 ``g x (pitch oscillation)`` into (AT.2); give them as ``accel_psd_extra``.
+
+Unmodelled accelerometer scale factor and misalignment (option ``accel_scale_sigma``,
+off by default): the body-y output carries the y row of ``S_a f`` (``S_a`` the
+scale-factor / cross-coupling matrix). Its gravity part is constant in body axes while
+the vehicle stays level, a bias the bias state absorbs; the kinematic part, the along-track
+acceleration ``s''`` times the y scale factor plus the centripetal ``v^2 kappa`` of the
+turns times the cross-coupling to the lateral axis, is not. With the elements of
+``S_a`` independent of sigma ``sigma_a`` it has the variance ``sigma_a^2 |a|^2`` and is
+covered, as in the INS filters' (RS.2) (:mod:`navsim.estimators._inserror`), as white
+acceleration noise of PSD
+
+    q_Sa = sigma_a^2 (a_t^2 + (v^2 kappa(s))^2) tau_S                        (AT.13)
+
+added to ``q_v`` for each covariance interval, with ``a_t`` the mean along-track
+acceleration of the interval before (its change of the speed estimate over its length),
+``kappa = |dt_n/ds|`` the track's curvature from the map at the interval start and
+``tau_S`` the correlation time of the error (``scale_tau_s``, about the length of a
+turn or of an acceleration phase).
 
 Discretisation per navigation step ``dt`` (exact for the specific-force part: the
 increments of the multiple integrals of seed 000 eq. (1.14) on the body y axis are the
@@ -66,6 +85,33 @@ four satellites or more) projected on the track (``s`` minimising the distance t
 fix, Newton on ``t_e . (r_fix - r_e(s)) = 0``), with variance ``t_e^T Sigma_fix t_e``;
 and, with ``use_doppler``, the velocity fix projected on the tangent. The clock is
 solved by the fix; the filter then has no clock states.
+
+Atmosphere (option ``atmosphere``, default "none")
+--------------------------------------------------
+An uncorrected single-frequency receiver (``context.gnss.atmosphere_modelled``) has
+slant ionospheric and tropospheric delays in every pseudorange. Their common part goes
+into the clock bias, but the part that differs between satellites with the elevation
+projects onto the track as an arc-length error that lasts as long as the delays do
+(minutes to hours): taken as white code noise it is averaged down epoch after epoch and
+the filter grows over-confident in ``s``. With ``atmosphere="auto"`` (pseudorange mode
+with the clock states) two states follow the clock, the corrections ``dI``, ``dT`` of the
+zenith ionospheric and sea-level zenith tropospheric delays to the context's a-priori
+values (the standard-model values a receiver applies), with the a-priori sigmas as prior.
+The predicted pseudorange gets the slant delays of the tightly coupled filter's (TC.6)
+(:mod:`navsim.estimators.tightly`: thin-shell obliquity ``F(E)``, DO-229D mapping ``m(E)``,
+height factor ``exp(-h / H_T)``)::
+
+    rho_i += (I_0 + dI) F(E_i) + (T_0 + dT) exp(-h / H_T) m(E_i)                 (AT.14)
+    d rho_i / d dI = F(E_i),   d rho_i / d dT = exp(-h / H_T) m(E_i)
+
+with ``E_i`` the elevation at the track point ``s`` (the slant delays' change with ``s``
+through the elevation, ~1e-5 m/m, is left out of ``d rho_i / ds``). The corrections are
+held constant between updates and walk with the driving PSD ``2 sigma^2 / tau`` of a
+Gauss-Markov process of the prior sigma (options ``ionosphere_tau_s`` = 1800 s,
+``troposphere_tau_s`` = 3600 s, the tightly coupled filter's): over an episode much
+shorter than tau the Gauss-Markov mean hardly decays, and the random walk's variance
+exceeds the Gauss-Markov's only after ~tau/2 (conservative). The multipath's 30-s
+correlation is not modelled (it stays in the white code sigma).
 
 Antenna lever arm (``context.gnss.lever_arm_b_m`` = l, body axes; option ``lever_arm``)
 -------------------------------------------------------------------------------------
@@ -324,13 +370,15 @@ def _series_expm(a: np.ndarray, order: int = 4) -> np.ndarray:
     return out
 
 
-def _process_noise(tau: np.ndarray, q_v: float, q_b: float, s_f: float, s_g: float, n_x: int) -> np.ndarray:
+def _process_noise(tau: np.ndarray, q_v: float, q_b: float, s_f: float, s_g: float, n_x: int,
+                   q_atm: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """Discrete process noise over intervals tau (k,), shape (k, n_x, n_x).
 
     [s, v] driven by white acceleration q_v (m^2/s^3): q_v [[t^3/3, t^2/2], [t^2/2, t]];
     a random-walk bias q_b entering v' with -1 adds q_b [[t^5/20, t^4/8, -t^3/6],
     [t^4/8, t^3/3, -t^2/2], [-t^3/6, -t^2/2, t]] (correlation time >> t); clock (AT.4):
-    [[S_f t + S_g t^3/3, S_g t^2/2], [S_g t^2/2, S_g t]] (Brown & Hwang 9.3).
+    [[S_f t + S_g t^3/3, S_g t^2/2], [S_g t^2/2, S_g t]] (Brown & Hwang 9.3); the
+    atmosphere corrections (AT.14), states 5 and 6 when ``n_x == 7``: random walks q_atm t.
     """
     t = np.asarray(tau, dtype=float)
     t2, t3 = t * t, t * t * t
@@ -342,10 +390,13 @@ def _process_noise(tau: np.ndarray, q_v: float, q_b: float, s_f: float, s_g: flo
     q[..., 0, 2] = q[..., 2, 0] = -q_b * t3 / 6
     q[..., 1, 2] = q[..., 2, 1] = -q_b * t2 / 2
     q[..., 2, 2] = q_b * t
-    if n_x == 5:
+    if n_x >= 5:
         q[..., 3, 3] = s_f * t + s_g * t3 / 3
         q[..., 3, 4] = q[..., 4, 3] = s_g * t2 / 2
         q[..., 4, 4] = s_g * t
+    if n_x == 7:
+        q[..., 5, 5] = q_atm[0] * t
+        q[..., 6, 6] = q_atm[1] * t
     return q
 
 
@@ -385,6 +436,8 @@ class AlongTrackOptions:
     clock: str = "auto"
     estimate_bias: bool = True
     accel_psd_extra: float = 0.0
+    accel_scale_sigma: float = 0.0
+    scale_tau_s: float = 5.0
     cov_period_s: float | None = None
     table_step_m: float = 5.0
     position_floor_m: float = 0.0
@@ -397,12 +450,21 @@ class AlongTrackOptions:
     lever_arm: str = "auto"
     odometer: str = "auto"
     odometer_period_s: float = 1.0
+    atmosphere: str = "none"
+    ionosphere_tau_s: float = 1800.0
+    troposphere_tau_s: float = 3600.0
 
     def __post_init__(self):
         if self.lever_arm not in ("auto", "none"):
             raise ConfigError("along-track.lever_arm", "'auto' or 'none'", self.lever_arm)
         if self.odometer not in ("auto", "none"):
             raise ConfigError("along-track.odometer", "'auto' or 'none'", self.odometer)
+        if self.atmosphere not in ("auto", "none"):
+            raise ConfigError("along-track.atmosphere", "'auto' or 'none'", self.atmosphere)
+        for name in ("ionosphere_tau_s", "troposphere_tau_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 0.0):
+                raise ConfigError(f"along-track.{name}", "a positive time, s (inf: a random constant)", value)
         if not (isinstance(self.odometer_period_s, (int, float)) and self.odometer_period_s > 0.0
                 and math.isfinite(self.odometer_period_s)):
             raise ConfigError("along-track.odometer_period_s", "a positive finite time, s", self.odometer_period_s)
@@ -414,13 +476,13 @@ class AlongTrackOptions:
             raise ConfigError("along-track.update", f"one of {_UPDATES}", self.update)
         if self.clock not in _CLOCKS:
             raise ConfigError("along-track.clock", f"one of {_CLOCKS}", self.clock)
-        for name in ("accel_psd_extra", "position_floor_m", "velocity_floor_mps", "attitude_floor_rad"):
+        for name in ("accel_psd_extra", "accel_scale_sigma", "position_floor_m", "velocity_floor_mps", "attitude_floor_rad"):
             value = getattr(self, name)
             if value is None and name == "attitude_floor_rad":
                 continue
             if not (isinstance(value, (int, float)) and value >= 0.0 and math.isfinite(value)):
                 raise ConfigError(f"along-track.{name}", "a non-negative finite number", value)
-        for name in ("table_step_m", "nis_divergence"):
+        for name in ("table_step_m", "nis_divergence", "scale_tau_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
                 raise ConfigError(f"along-track.{name}", "a positive finite number", value)
@@ -451,6 +513,10 @@ class AlongTrackFilter(NoiseScalable):
     accel_psd_extra : float
         Extra along-track acceleration PSD, m^2/s^3, for unmodelled effects (body
         oscillations, track errors).
+    accel_scale_sigma, scale_tau_s : float
+        Sigma of the accelerometer's scale-factor / misalignment elements (default 0:
+        off) and the correlation time of their error, s (default 5): the unmodelled
+        ``S_a a`` of (AT.13), as acceleration-proportional noise.
     cov_period_s : float, optional
         Longest covariance propagation interval (default: the GNSS period).
     table_step_m : float
@@ -476,6 +542,13 @@ class AlongTrackFilter(NoiseScalable):
         "none": ignore it (the filter without odometer, number for number).
     odometer_period_s : float
         Interval of the odometer updates, s (rounded to whole navigation steps).
+    atmosphere : {"none", "auto"}
+        "auto": with an uncorrected receiver (``context.gnss.atmosphere_modelled``), in the
+        pseudorange mode with clock states, apply the a-priori slant delays and estimate
+        the zenith corrections (AT.14); "none" (default): no atmosphere in the model.
+    ionosphere_tau_s, troposphere_tau_s : float
+        Correlation times of the zenith corrections, s (their random-walk PSD 2 sigma^2 /
+        tau; inf: random constants).
 
     The model, discretisation and measurement equations are in the module docstring.
     """
@@ -508,7 +581,9 @@ class AlongTrackFilter(NoiseScalable):
             self.clock_states = True
         else:
             self.clock_states = bool(gnss.clock_modelled)
-        n_core = 5 if self.clock_states else 3
+        self.atmosphere = (opt.atmosphere == "auto" and opt.update == "pseudorange" and self.clock_states
+                           and bool(getattr(gnss, "atmosphere_modelled", False)))
+        n_core = (5 if self.clock_states else 3) + (2 if self.atmosphere else 0)
         odometer = getattr(context, "odometer", None)
         self.use_odometer = opt.odometer == "auto" and odometer is not None
         n_x = n_core + (2 if self.use_odometer else 0)
@@ -542,6 +617,14 @@ class AlongTrackFilter(NoiseScalable):
         P[2, 2] = sigma_b**2
         if self.clock_states:
             P[3, 3], P[4, 4] = cb_sigma**2, cd_sigma**2
+        self.q_atm = (0.0, 0.0)
+        if self.atmosphere:  # (AT.14) zenith corrections to the a-priori delays
+            sig_i, sig_t = float(gnss.ionosphere_zenith_sigma_m), float(gnss.troposphere_zenith_sigma_m)
+            P[5, 5], P[6, 6] = sig_i**2, sig_t**2
+            self.q_atm = (2.0 * sig_i**2 / opt.ionosphere_tau_s, 2.0 * sig_t**2 / opt.troposphere_tau_s)
+            self.atm_zenith0 = (float(gnss.ionosphere_zenith_m), float(gnss.troposphere_zenith_m))
+            self.atm_k = context.earth.a / (context.earth.a + float(gnss.ionosphere_shell_height_m))
+            self.atm_scale_height = float(gnss.troposphere_scale_height_m)
         if self.use_odometer:  # (AT.11) the clone starts as s itself
             ic, ik = self.i_clone, self.i_scale
             x[ic] = s0
@@ -565,6 +648,7 @@ class AlongTrackFilter(NoiseScalable):
         self.cov_steps = max(1, int(round(period / dt)))
         self.dt = dt
         self.decay = math.exp(-dt / self.tau_b) if math.isfinite(self.tau_b) else 1.0
+        self.k_in, self._v_start = 0, v0  # no interval before the first: (AT.13) starts from a_t = 0
         self._start_interval()
         self.t = float(prior.t)
         self.diverged = False
@@ -582,6 +666,16 @@ class AlongTrackFilter(NoiseScalable):
         if self.clock_states:
             F[3, 4] = 1.0  # (AT.4)
         self.F = F
+        self.q_int = self.q_v  # white acceleration PSD of this interval
+        sigma_a = self.options.accel_scale_sigma
+        if sigma_a > 0.0:  # (AT.13) with the interval before
+            s, v = float(self.x[0]), float(self.x[1])
+            span = getattr(self, "k_in", 0) * self.dt
+            a_t = (v - self._v_start) / span if span > 0.0 else 0.0
+            kappa = float(np.linalg.norm(self.table.evaluate(s, self.table.T_N, 1)))
+            a_c = v * v * kappa
+            self.q_int = self.q_v + sigma_a * sigma_a * (a_t * a_t + a_c * a_c) * self.options.scale_tau_s
+            self._v_start = v
         self.P0 = self.P
         self.k_in = 0  # steps since the interval start
         self._P_block = None  # (first k, P(k) of the rest of the interval) for step()
@@ -590,7 +684,7 @@ class AlongTrackFilter(NoiseScalable):
         """P(t_0 + k dt) = Phi P0 Phi^T + Q for integer step counts k (array)."""
         tau = np.asarray(k, dtype=float) * self.dt
         phi = _series_expm(self.F * tau[:, None, None])
-        q = _process_noise(tau, self.q_v, self.q_b, self.s_f, self.s_g, self.n_core)
+        q = _process_noise(tau, self.q_int, self.q_b, self.s_f, self.s_g, self.n_core, self.q_atm)
         if self.n_x != self.n_core:  # (AT.11) clone: no noise; scale factor: random walk
             full = np.zeros(tau.shape + (self.n_x, self.n_x))
             full[..., :self.n_core, :self.n_core] = q
@@ -639,6 +733,17 @@ class AlongTrackFilter(NoiseScalable):
         drate_ds = np.einsum("mi,mi->m", du_ds, rel) - v * (u @ dt_e)
         return rho, rate, -ut, drate_ds, -ut
 
+    def _atmosphere_maps(self, s: float, sat_pos_e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(AT.14): F(E_i) and exp(-h / H_T) m(E_i) at the track point s, (m,) each."""
+        lat, lon, h = (float(c) for c in self.table.evaluate(s, self.table.GEO))
+        up = np.array([math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)])
+        los = sat_pos_e - self.table.position_e(s)
+        sin_e = (los @ up) / np.sqrt(np.einsum("mi,mi->m", los, los))
+        k = self.atm_k
+        obliquity = 1.0 / np.sqrt(1.0 - k * k * (1.0 - sin_e * sin_e))  # thin shell, (TC.6)
+        mapping = 1.001 / np.sqrt(0.002001 + sin_e * sin_e)  # RTCA DO-229D, (TC.6)
+        return obliquity, math.exp(-h / self.atm_scale_height) * mapping
+
     def _update(self, obs) -> tuple[float | None, int]:
         use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m)
         if not use.any():
@@ -656,6 +761,10 @@ class AlongTrackFilter(NoiseScalable):
             if self.clock_states:
                 H[:, 3] = 1.0
                 pred = pred + x[3]
+            if self.atmosphere:  # (AT.14)
+                m_iono, m_tropo = self._atmosphere_maps(s, obs.sat_pos_e[use])
+                H[:, 5], H[:, 6] = m_iono, m_tropo
+                pred = pred + (self.atm_zenith0[0] + x[5]) * m_iono + (self.atm_zenith0[1] + x[6]) * m_tropo
             rows.append(H)
             ys.append(obs.pseudorange_m[use] - pred)  # (003 eq. 2) innovation
             rs.append(np.full(m, self.sigma_pr**2))
