@@ -32,6 +32,11 @@ The core (``navsim``) never imports Gymnasium; this package is the only one that
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # type hints only
+    from typing import Any
+
 try:
     import gymnasium  # noqa: F401
 except ImportError:  # the core installs without the Gymnasium face's extra
@@ -46,7 +51,7 @@ from .registration import SCENARIO_IDS, env_ids, register_envs, scenario_of
 __all__ = ["register_envs", "env_ids", "scenario_of", "NavigationEnv", "NavigationVectorEnv", "AdaptiveFilterEnv",
            "DrivingEnv", "EstimatorAgent", "EstimateAction", "evaluate", "SCENARIO_IDS"]
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name == "NavigationVectorEnv":
         from .vector import NavigationVectorEnv
 

@@ -27,7 +27,12 @@ lazily, so ``import navsim.fmu`` works without the ``fmu`` extra.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .variables import Dimensions, Var, action_variables, estimator_variables, observation_variables, plant_variables
+
+if TYPE_CHECKING:  # type hints only
+    from typing import Any
 
 __all__ = [
     "Var", "Dimensions", "plant_variables", "estimator_variables", "observation_variables", "action_variables",
@@ -44,7 +49,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 

@@ -47,8 +47,12 @@ Missing data
 from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING
 
 from . import _gymhook, earth, errors, rotations
+
+if TYPE_CHECKING:  # type hints only
+    from typing import Any
 
 try:
     __version__ = version("navsim-track")
@@ -63,7 +67,7 @@ __all__ = ["earth", "errors", "rotations", "evaluate", "__version__"]
 _gymhook.install()
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name == "evaluate":  # lazily: it lives in the Gymnasium face
         from .envs import evaluate
 

@@ -57,6 +57,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..errors import ConfigError, check_nonnegative
+from ..types import FloatOrArray
 
 __all__ = ["OutageModel", "OutageState", "visibility", "visibility_batch", "canyon_mask_elevation"]
 
@@ -229,7 +230,7 @@ def _stationary_out(mean_out: float, mean_avail: float) -> float:
     return mean_out / (mean_out + mean_avail) if mean_out > 0.0 else 0.0
 
 
-def canyon_mask_elevation(relative_azimuth, cross_mask_rad) -> np.ndarray:
+def canyon_mask_elevation(relative_azimuth: FloatOrArray, cross_mask_rad: FloatOrArray) -> np.ndarray:
     """Masking elevation arctan(tan(E_cross) |sin alpha|) of a street canyon, rad.
 
     ``relative_azimuth`` is the azimuth from the street direction (rad).
@@ -278,17 +279,17 @@ def _markov(
 
 
 def visibility(
-    t,
-    s,
-    heading,
-    elevation,
-    azimuth,
+    t: np.ndarray,
+    s: np.ndarray,
+    heading: np.ndarray,
+    elevation: np.ndarray,
+    azimuth: np.ndarray,
     segments: Iterable[Any],
     model: OutageModel,
     state: OutageState,
     rng: np.random.Generator,
     *,
-    prn=None,
+    prn: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, OutageState]:
     """Which satellite signals reach the antenna at each epoch.
 
@@ -329,17 +330,17 @@ def visibility(
 
 
 def visibility_batch(
-    t,
-    s,
-    heading,
-    elevation,
-    azimuth,
+    t: np.ndarray,
+    s: np.ndarray,
+    heading: np.ndarray,
+    elevation: np.ndarray,
+    azimuth: np.ndarray,
     segments: Iterable[Any],
     model: OutageModel,
     states: Sequence[OutageState],
     rngs: Sequence[np.random.Generator],
     *,
-    prn=None,
+    prn: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, list[OutageState]]:
     """:func:`visibility` for B receivers on the same true motion, in one pass.
 

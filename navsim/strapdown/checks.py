@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
 
 __all__ = ["check_sub", "check_multi", "check_dt"]
 
 
-def check_sub(dtheta_sub, m: int, name: str) -> np.ndarray:
+def check_sub(dtheta_sub: ArrayLike | None, m: int, name: str) -> np.ndarray:
     """The (n, m, 3) sub-sample increments of method ``name`` as floats (ConfigError otherwise)."""
     if dtheta_sub is None:
         raise ConfigError(f"{name}.dtheta_sub", f"array of shape (n, {m}, 3)", None)
@@ -19,7 +20,7 @@ def check_sub(dtheta_sub, m: int, name: str) -> np.ndarray:
     return arr
 
 
-def check_multi(dtheta_r, order: int, name: str, field: str = "dtheta_r") -> np.ndarray:
+def check_multi(dtheta_r: ArrayLike | None, order: int, name: str, field: str = "dtheta_r") -> np.ndarray:
     """The (n, R >= order, 3) multiple integrals of method ``name`` as floats (ConfigError otherwise)."""
     if dtheta_r is None:
         raise ConfigError(f"{name}.{field}", f"array of shape (n, R>={order}, 3)", None)
@@ -29,7 +30,7 @@ def check_multi(dtheta_r, order: int, name: str, field: str = "dtheta_r") -> np.
     return arr
 
 
-def check_dt(dt, name: str) -> float:
+def check_dt(dt: float | None, name: str) -> float:
     """The navigation step of method ``name``, s (positive and finite; ConfigError otherwise)."""
     if dt is None:
         raise ConfigError(f"{name}.dt", "the navigation step in seconds (> 0)", None)

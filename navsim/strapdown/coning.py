@@ -69,6 +69,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .checks import check_dt as _dt
 from .checks import check_multi as _multi
@@ -93,7 +94,7 @@ ConingFn = Callable[..., np.ndarray]
 
 # ----------------------------------------------------------------------------- input checks
 # ------------------------------------------------------------------------------ traditional
-def one_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def one_sample(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Phi = DeltaTheta: no coning correction ((1.11) with deltaTheta_c = 0).
 
     Uses the sum of ``dtheta_sub`` if given, else ``dtheta_r[:, 0]``.
@@ -103,7 +104,7 @@ def one_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return _multi(dtheta_r, 1, "one-sample")[:, 0].copy()
 
 
-def two_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def two_sample(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Two-sample algorithm (linear omega model): deltaTheta_c = 2/3 DT1 x DT2.
 
     The coning twin of the sculling algorithm (2.3) (same coefficient, halved by the 1/2
@@ -114,7 +115,7 @@ def two_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return d1 + d2 + (2.0 / 3.0) * np.cross(d1, d2)
 
 
-def _three_sample_xy(dtheta_sub, x: float, y: float, name: str) -> np.ndarray:
+def _three_sample_xy(dtheta_sub: ArrayLike | None, x: float, y: float, name: str) -> np.ndarray:
     d = _sub(dtheta_sub, 3, name)
     d1, d2, d3 = d[:, 0], d[:, 1], d[:, 2]
     # (2.10) deltaTheta_c = X (DT1 x DT3) + Y DT2 x (DT3 - DT1)
@@ -122,7 +123,7 @@ def _three_sample_xy(dtheta_sub, x: float, y: float, name: str) -> np.ndarray:
     return d1 + d2 + d3 + correction
 
 
-def three_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def three_sample(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Three-sample algorithm (2.10) for the quadratic omega model, X = 33/80, Y = 57/80.
 
     Local error (2.11) DeltaT**5/6480 (A x D); coning drift (2.12).
@@ -131,7 +132,8 @@ def three_sample(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return _three_sample_xy(dtheta_sub, 33.0 / 80.0, 57.0 / 80.0, "three-sample")
 
 
-def three_sample_optimized(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def three_sample_optimized(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+                           dt: float | None = None) -> np.ndarray:
     """Three-sample algorithm (2.10) with Miller's coning-optimized X = 9/20, Y = 27/40.
 
     Coning drift (2.13); general local error DeltaT**4/120 (A x C) (printed after (2.13)).
@@ -141,7 +143,8 @@ def three_sample_optimized(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarra
 
 
 # ------------------------------------------------------------------------------- smoothing
-def smoothing_linear(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def smoothing_linear(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+                     dt: float | None = None) -> np.ndarray:
     """Smoothing algorithm for the linear omega model (coning twin of (3.6)).
 
     deltaTheta_c = -(1/T) DT1 x DT2, i.e. (3.5) substituted into the first term of (2.9).
@@ -153,7 +156,7 @@ def smoothing_linear(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return d1 - np.cross(d1, d2) / t
 
 
-def smoothing(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def smoothing(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Smoothing algorithm (3.7) for the quadratic omega model.
 
     deltaTheta_c = 6/T^2 (DT1 x DT3) - 3/T DT2 x (4/T^2 DT3 - DT1).
@@ -169,7 +172,8 @@ def smoothing(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- invariant
-def invariant_constant(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def invariant_constant(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+                       dt: float | None = None) -> np.ndarray:
     """Invariant algorithm, constant omega model: (4.3) one term, omega_k+1 = DT1/T.
 
     deltaTheta_c = DT2 x DT1 / (2T) (coning twin of (4.5)/(4.7)). Input ``dtheta_r``, R >= 2.
@@ -180,7 +184,8 @@ def invariant_constant(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return d1 + np.cross(d2, d1) / (2.0 * t)
 
 
-def invariant_linear(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def invariant_linear(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+                     dt: float | None = None) -> np.ndarray:
     """Invariant algorithm, linear omega model: (4.3) two terms with (3.5) at t_k+1.
 
     omega_k+1 = 4/T DT1 - 6/T^2 DT2, omega'_k+1 = 6/T^2 DT1 - 12/T^3 DT2,
@@ -195,7 +200,7 @@ def invariant_linear(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
     return d1 + 0.5 * (np.cross(d2, rate_end) - np.cross(d3, rate_dot_end))
 
 
-def invariant(dtheta_sub=None, dtheta_r=None, dt=None) -> np.ndarray:
+def invariant(dtheta_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Invariant algorithm (4.8) for the quadratic omega model (printed typo corrected).
 
     deltaTheta_c = 18/T^2 (DT1 x DT3) - 3/(2T) DT2 x (44/T^2 DT3 - 3 DT1)

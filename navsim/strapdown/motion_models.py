@@ -36,11 +36,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from math import factorial
+from typing import Callable
 
 import numpy as np
 from numpy.polynomial.legendre import leggauss
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
+from ..types import FloatOrArray
 
 __all__ = [
     "phi_functions",
@@ -58,7 +61,7 @@ _GL_NODES = 24
 _GL_X, _GL_W = leggauss(_GL_NODES)
 
 
-def phi_functions(z, r_max: int) -> np.ndarray:
+def phi_functions(z: np.ndarray, r_max: int) -> np.ndarray:
     """phi_r(z) = sum_j z**j / (j + r)! for r = 1 .. r_max, shape z.shape + (r_max,).
 
     Series for |z| < 1 (40 terms, error below 1e-40 relative), else the recurrence
@@ -115,7 +118,7 @@ class Signal:
         object.__setattr__(self, "freqs", freqs)
         object.__setattr__(self, "amps", amps)
 
-    def derivative(self, t, order: int = 0) -> np.ndarray:
+    def derivative(self, t: FloatOrArray, order: int = 0) -> np.ndarray:
         """d^order x / dt^order at times t (n,), shape (n, 3)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         out = np.zeros(t.shape + (3,))
@@ -126,11 +129,11 @@ class Signal:
             out += np.real((phase * (1j * self.freqs) ** order) @ self.amps)
         return out
 
-    def value(self, t) -> np.ndarray:
+    def value(self, t: FloatOrArray) -> np.ndarray:
         """x(t), shape (n, 3)."""
         return self.derivative(t, 0)
 
-    def multiple_integrals(self, t_start, dt, r_max: int) -> np.ndarray:
+    def multiple_integrals(self, t_start: FloatOrArray, dt: float, r_max: int) -> np.ndarray:
         """Increments (1.14) over [t_start, t_start + dt], orders 1..r_max: (n, r_max, 3).
 
         ``dt`` may be a scalar or an array broadcastable to ``t_start``.
@@ -153,13 +156,13 @@ class Signal:
                 out[:, r - 1] += np.real(coeff @ self.amps)
         return out
 
-    def integral(self, t_start, t_end) -> np.ndarray:
+    def integral(self, t_start: FloatOrArray, t_end: FloatOrArray) -> np.ndarray:
         """First integral over [t_start, t_end] (elementwise), shape (n, 3)."""
         t0 = np.atleast_1d(np.asarray(t_start, dtype=float))
         h = np.broadcast_to(np.asarray(t_end, dtype=float), t0.shape) - t0
         return self.multiple_integrals(t0, h, 1)[:, 0]
 
-    def sub_increments(self, t_start, dt, m: int) -> np.ndarray:
+    def sub_increments(self, t_start: FloatOrArray, dt: float, m: int) -> np.ndarray:
         """m first-order increments over equal sub-intervals of the step: (n, m, 3)."""
         t0 = np.atleast_1d(np.asarray(t_start, dtype=float))
         parts = [self.integral(t0 + j * dt / m, t0 + (j + 1) * dt / m) for j in range(m)]
@@ -177,16 +180,16 @@ class Motion:
     omega: Signal
     accel: Signal = field(default_factory=Signal)
 
-    def increments(self, t_start, dt, r_max: int) -> tuple[np.ndarray, np.ndarray]:
+    def increments(self, t_start: FloatOrArray, dt: float, r_max: int) -> tuple[np.ndarray, np.ndarray]:
         """(dtheta_r, dv_r), each (n, r_max, 3), over [t_start, t_start + dt]."""
         return self.omega.multiple_integrals(t_start, dt, r_max), self.accel.multiple_integrals(t_start, dt, r_max)
 
-    def sub_increments(self, t_start, dt, m: int) -> tuple[np.ndarray, np.ndarray]:
+    def sub_increments(self, t_start: FloatOrArray, dt: float, m: int) -> tuple[np.ndarray, np.ndarray]:
         """(dtheta_sub, dv_sub), each (n, m, 3)."""
         return self.omega.sub_increments(t_start, dt, m), self.accel.sub_increments(t_start, dt, m)
 
     # ---------------------------------------------------------------- exact references
-    def _nodes(self, t_start, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _nodes(self, t_start: FloatOrArray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Composite Gauss-Legendre nodes: offsets tau (n, K), weights (n, K), t0 (n,)."""
         t0 = np.atleast_1d(np.asarray(t_start, dtype=float))
         h = float(dt)
@@ -199,7 +202,8 @@ class Motion:
         weights = (half[:, None] * _GL_W[None, :]).ravel()
         return np.broadcast_to(tau, t0.shape + tau.shape), np.broadcast_to(weights, t0.shape + tau.shape), t0
 
-    def _quadrature(self, t_start, dt, first: Signal, second: Signal, kernel) -> np.ndarray:
+    def _quadrature(self, t_start: FloatOrArray, dt: float, first: Signal, second: Signal,
+                    kernel: Callable[..., np.ndarray]) -> np.ndarray:
         tau, weights, t0 = self._nodes(t_start, dt)
         times = (t0[:, None] + tau).ravel()
         starts = np.repeat(t0, tau.shape[1])
@@ -208,23 +212,23 @@ class Motion:
         integrand = np.cross(angle, value) * kernel(tau, float(dt))[..., None]
         return np.einsum("nk,nkj->nj", weights, integrand)
 
-    def exact_coning(self, t_start, dt) -> np.ndarray:
+    def exact_coning(self, t_start: FloatOrArray, dt: float) -> np.ndarray:
         """(1.12) deltaTheta_c = 1/2 int DeltaTheta(t_k, t) x omega(t) dt, shape (n, 3)."""
         return 0.5 * self._quadrature(t_start, dt, self.omega, self.omega, lambda tau, h: np.ones_like(tau))
 
-    def exact_sculling(self, t_start, dt) -> np.ndarray:
+    def exact_sculling(self, t_start: FloatOrArray, dt: float) -> np.ndarray:
         """(1.8) deltaV_s = int DeltaTheta(t_k, t) x a(t) dt, shape (n, 3)."""
         return self._quadrature(t_start, dt, self.omega, self.accel, lambda tau, h: np.ones_like(tau))
 
-    def exact_partial_displacement(self, t_start, dt) -> np.ndarray:
+    def exact_partial_displacement(self, t_start: FloatOrArray, dt: float) -> np.ndarray:
         """(5.4) dS_s = int_0^T (T - tau) DeltaTheta(t_k, tau) x a(tau) dtau, (n, 3)."""
         return self._quadrature(t_start, dt, self.omega, self.accel, lambda tau, h: h - tau)
 
-    def exact_rotation_vector(self, t_start, dt) -> np.ndarray:
+    def exact_rotation_vector(self, t_start: FloatOrArray, dt: float) -> np.ndarray:
         """DeltaTheta + deltaTheta_c of (1.11) with the exact (1.12), shape (n, 3)."""
         return self.omega.integral(t_start, np.asarray(t_start) + dt) + self.exact_coning(t_start, dt)
 
-    def exact_velocity_bracket(self, t_start, dt) -> np.ndarray:
+    def exact_velocity_bracket(self, t_start: FloatOrArray, dt: float) -> np.ndarray:
         """DeltaV + deltaV_s of (1.6) with the exact (1.8), shape (n, 3)."""
         return self.accel.integral(t_start, np.asarray(t_start) + dt) + self.exact_sculling(t_start, dt)
 
@@ -251,7 +255,7 @@ def coning_motion(half_angle: float, rate: float) -> Motion:
     return Motion(omega=omega)
 
 
-def coning_quaternion(half_angle: float, rate: float, t) -> np.ndarray:
+def coning_quaternion(half_angle: float, rate: float, t: FloatOrArray) -> np.ndarray:
     """Attitude q_ib(t) = [cos(a/2), sin(a/2) cos(Wt), sin(a/2) sin(Wt), 0] of the coning body."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
     c, s = np.cos(half_angle / 2), np.sin(half_angle / 2)
@@ -292,7 +296,7 @@ def pseudo_sculling(rate_amp: float, accel_amp: float, freq: float) -> Motion:
     return sculling_motion(rate_amp / freq, accel_amp, freq)
 
 
-def polynomial_motion(omega_taylor, accel_taylor=None) -> Motion:
+def polynomial_motion(omega_taylor: ArrayLike, accel_taylor: ArrayLike | None = None) -> Motion:
     """General motion by Taylor coefficients at t = 0, arrays (P, 3): omega = A + B t + C t^2/2 + ..."""
     accel = Signal() if accel_taylor is None else Signal(poly=np.asarray(accel_taylor, dtype=float))
     return Motion(omega=Signal(poly=np.asarray(omega_taylor, dtype=float)), accel=accel)

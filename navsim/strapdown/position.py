@@ -68,6 +68,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
 from .checks import check_dt as _dt
@@ -90,7 +91,7 @@ __all__ = [
 PositionFn = Callable[..., np.ndarray]
 
 
-def _state(velocity_i_k, mat_ib_k, name: str) -> tuple[np.ndarray, np.ndarray]:
+def _state(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, name: str) -> tuple[np.ndarray, np.ndarray]:
     velocity = np.asarray(velocity_i_k, dtype=float)
     if velocity.ndim != 2 or velocity.shape[1] != 3:
         raise ConfigError(f"{name}.velocity_i_k", "array of shape (n, 3)", velocity.shape)
@@ -103,7 +104,7 @@ def _state(velocity_i_k, mat_ib_k, name: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------ partial increments (5.4)
-def partial_increment_constant(dtheta_r, dv_r, dt) -> np.ndarray:
+def partial_increment_constant(dtheta_r: ArrayLike | None, dv_r: ArrayLike | None, dt: float | None) -> np.ndarray:
     """dS_s (5.4) for constant omega and a: ``T/6 DT1 x DV1``, shape (n, 3)."""
     th = _multi(dtheta_r, 1, "exact")
     dv = _multi(dv_r, 1, "exact", "dv_r")
@@ -111,7 +112,7 @@ def partial_increment_constant(dtheta_r, dv_r, dt) -> np.ndarray:
     return (t / 6.0) * np.cross(th[:, 0], dv[:, 0])
 
 
-def partial_increment_smoothing(dtheta_r, dv_r, dt) -> np.ndarray:
+def partial_increment_smoothing(dtheta_r: ArrayLike | None, dv_r: ArrayLike | None, dt: float | None) -> np.ndarray:
     """dS_s (5.4) for linear omega and a models from (3.5) (smoothing class), (n, 3)."""
     th = _multi(dtheta_r, 2, "exact-smoothing")
     dv = _multi(dv_r, 2, "exact-smoothing", "dv_r")
@@ -127,7 +128,7 @@ def partial_increment_smoothing(dtheta_r, dv_r, dt) -> np.ndarray:
     )
 
 
-def partial_increment_invariant(dtheta_r, dv_r, dt) -> np.ndarray:
+def partial_increment_invariant(dtheta_r: ArrayLike | None, dv_r: ArrayLike | None, dt: float | None) -> np.ndarray:
     """Acceleration-invariant dS_s (5.4) for the linear omega model, shape (n, 3)."""
     th = _multi(dtheta_r, 2, "exact-invariant")
     dv = _multi(dv_r, 4, "exact-invariant", "dv_r")
@@ -140,13 +141,17 @@ def partial_increment_invariant(dtheta_r, dv_r, dt) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- methods
-def rectangle(velocity_i_k, mat_ib_k=None, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None):
+def rectangle(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None = None, dtheta_sub: ArrayLike | None = None,
+              dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+              dt: float | None = None) -> np.ndarray:
     """(5.1) rectangle rule: ``V_i(k) DeltaT``, shape (n, 3)."""
     velocity, _ = _state(velocity_i_k, None, "rectangle")
     return velocity * _dt(dt, "rectangle")
 
 
-def trapezoid(velocity_i_k, mat_ib_k, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None):
+def trapezoid(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, dtheta_sub: ArrayLike | None = None,
+              dv_sub: ArrayLike | None = None,
+              dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """Trapezoid rule on V_i(k), V_i(k+1) (V_i(k+1) by (1.3), (1.6)), shape (n, 3)."""
     velocity, mat = _state(velocity_i_k, mat_ib_k, "trapezoid")
     t = _dt(dt, "trapezoid")
@@ -160,7 +165,9 @@ def trapezoid(velocity_i_k, mat_ib_k, dtheta_sub=None, dv_sub=None, dtheta_r=Non
     return 0.5 * t * (velocity + velocity_next)
 
 
-def _exact_form(velocity_i_k, mat_ib_k, dv_r, dt, partial, name: str) -> np.ndarray:
+def _exact_form(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, dv_r: ArrayLike | None, dt: float | None,
+                partial: np.ndarray,
+                name: str) -> np.ndarray:
     velocity, mat = _state(velocity_i_k, mat_ib_k, name)
     t = _dt(dt, name)
     dv = _multi(dv_r, 2, name, "dv_r")
@@ -168,19 +175,25 @@ def _exact_form(velocity_i_k, mat_ib_k, dv_r, dt, partial, name: str) -> np.ndar
     return velocity * t + np.einsum("nij,nj->ni", mat, dv[:, 1] + partial)
 
 
-def exact(velocity_i_k, mat_ib_k, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None):
+def exact(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, dtheta_sub: ArrayLike | None = None,
+          dv_sub: ArrayLike | None = None,
+          dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """(5.2) exact form with the constant-model partial increment, shape (n, 3)."""
     partial = partial_increment_constant(dtheta_r, dv_r, dt)
     return _exact_form(velocity_i_k, mat_ib_k, dv_r, dt, partial, "exact")
 
 
-def exact_smoothing(velocity_i_k, mat_ib_k, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None):
+def exact_smoothing(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, dtheta_sub: ArrayLike | None = None,
+                    dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                    dt: float | None = None) -> np.ndarray:
     """(5.2) exact form with the smoothing (linear models) partial increment, (n, 3)."""
     partial = partial_increment_smoothing(dtheta_r, dv_r, dt)
     return _exact_form(velocity_i_k, mat_ib_k, dv_r, dt, partial, "exact-smoothing")
 
 
-def exact_invariant(velocity_i_k, mat_ib_k, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None):
+def exact_invariant(velocity_i_k: ArrayLike | None, mat_ib_k: ArrayLike | None, dtheta_sub: ArrayLike | None = None,
+                    dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                    dt: float | None = None) -> np.ndarray:
     """(5.2) exact form with the acceleration-invariant partial increment, (n, 3)."""
     partial = partial_increment_invariant(dtheta_r, dv_r, dt)
     return _exact_form(velocity_i_k, mat_ib_k, dv_r, dt, partial, "exact-invariant")

@@ -86,6 +86,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
 
@@ -103,7 +104,7 @@ __all__ = [
 _MATRIZANT_VARIANTS = ("corrected", "printed", "printed-sign", "printed-index", "printed-f0")
 
 
-def omega_matrix(omega) -> np.ndarray:
+def omega_matrix(omega: ArrayLike) -> np.ndarray:
     """The 4x4 skew matrix Phi(omega) of 001 eq. (4), shape (..., 4, 4).
 
     ``Phi(omega) @ q`` equals the Hamilton product ``q o [0, omega]``.
@@ -123,7 +124,7 @@ def omega_matrix(omega) -> np.ndarray:
     )
 
 
-def quat_cumulative_product(quat0, dquat, normalize: bool = False) -> np.ndarray:
+def quat_cumulative_product(quat0: ArrayLike, dquat: ArrayLike, normalize: bool = False) -> np.ndarray:
     """Right-multiply a quaternion by a sequence of increments: ``q_{k+1} = q_k o dq_k``.
 
     Parameters
@@ -157,7 +158,7 @@ def quat_cumulative_product(quat0, dquat, normalize: bool = False) -> np.ndarray
     return np.array(out)
 
 
-def matrizant_quaternion(theta0, theta1, variant: str = "corrected") -> np.ndarray:
+def matrizant_quaternion(theta0: ArrayLike, theta1: ArrayLike, variant: str = "corrected") -> np.ndarray:
     """The matrizant quaternion ``[f0, f]`` of one double step H = 2h, 001 eq. (8).
 
     Parameters
@@ -201,7 +202,7 @@ def matrizant_quaternion(theta0, theta1, variant: str = "corrected") -> np.ndarr
     return np.concatenate([f0[..., None], f], axis=-1)
 
 
-def matrizant_integrate(quat0, dtheta, variant: str = "corrected") -> np.ndarray:
+def matrizant_integrate(quat0: ArrayLike, dtheta: ArrayLike, variant: str = "corrected") -> np.ndarray:
     """Integrate (2) with the matrizant algorithm (8)-(9) on double steps.
 
     Parameters
@@ -227,7 +228,7 @@ def matrizant_integrate(quat0, dtheta, variant: str = "corrected") -> np.ndarray
     return quat_cumulative_product(quat0, f)
 
 
-def reversible_integrate(quat0, dtheta, first_step_odd: bool = True) -> np.ndarray:
+def reversible_integrate(quat0: ArrayLike, dtheta: ArrayLike, first_step_odd: bool = True) -> np.ndarray:
     """Integrate (2) with the reversible Gauss-Seidel algorithm (11).
 
     Parameters
@@ -273,7 +274,7 @@ def reversible_integrate(quat0, dtheta, first_step_odd: bool = True) -> np.ndarr
 
 
 def rk4_integrate(
-    rate_fn: Callable[[np.ndarray], np.ndarray], quat0, t0: float, step: float, n_steps: int
+    rate_fn: Callable[[np.ndarray], np.ndarray], quat0: ArrayLike, t0: float, step: float, n_steps: int
 ) -> np.ndarray:
     """Classical Runge-Kutta (RK4) integration of 001 eq. (3), the paper's reference.
 
@@ -316,7 +317,7 @@ def rk4_integrate(
     return out
 
 
-def error_quaternion(quat_ref, quat) -> np.ndarray:
+def error_quaternion(quat_ref: ArrayLike, quat: ArrayLike) -> np.ndarray:
     """``Delta = conj(Lambda) o P`` of 001 eq. (13)-(14), shape (..., 4)."""
     lam = np.asarray(quat_ref, dtype=float)
     p = np.asarray(quat, dtype=float)
@@ -327,7 +328,7 @@ def error_quaternion(quat_ref, quat) -> np.ndarray:
     return np.concatenate([d0, dv], axis=-1)
 
 
-def error_angles(quat_ref, quat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def error_angles(quat_ref: ArrayLike, quat: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Small-angle heading, pitch and roll errors (rad) of 001, after (14).
 
     ``d_psi = 2 D0 D3`` (about z, vertical), ``d_theta = 2 D0 D2`` (about y,

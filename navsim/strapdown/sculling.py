@@ -70,6 +70,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .checks import check_dt as _dt
 from .checks import check_multi as _multi
@@ -90,7 +91,8 @@ __all__ = [
 ScullingFn = Callable[..., np.ndarray]
 
 
-def first_order(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def first_order(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+                dv_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """(2.4) constant-model transformation: DeltaV + 1/2 DeltaTheta x DeltaV.
 
     Uses the sums of the sub-sample increments if given, else the r = 1 integrals.
@@ -105,7 +107,8 @@ def first_order(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None)
     return dv + 0.5 * np.cross(dtheta, dv)
 
 
-def two_sample(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def two_sample(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+               dv_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """(2.3) two-sample algorithm (linear omega and a), with the corrected coefficient 2/3.
 
     deltaV_s = 1/2 DT x DV + 2/3 (DT1 x DV2 - DT2 x DV1); the paper prints 1/3 (typo,
@@ -121,7 +124,8 @@ def two_sample(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) 
     return total_v + correction
 
 
-def smoothing(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def smoothing(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None, dtheta_r: ArrayLike | None = None,
+              dv_r: ArrayLike | None = None, dt: float | None = None) -> np.ndarray:
     """(3.6) smoothing algorithm for linear omega and a models.
 
     deltaV_s = 1/2 (DT1 x DV1) - 1/T [(DT1 x DV2) - (DT2 x DV1)].
@@ -137,7 +141,9 @@ def smoothing(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -
     return v1 + correction
 
 
-def accel_invariant_linear(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def accel_invariant_linear(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None,
+                           dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                           dt: float | None = None) -> np.ndarray:
     """(4.4) acceleration-invariant algorithm for the linear omega model.
 
     deltaV_s = DT1 x DV1 + 6/T^2 (DT2 - 2T/3 DT1) x DV2 - 12/T^3 (DT2 - T/2 DT1) x DV3.
@@ -157,7 +163,9 @@ def accel_invariant_linear(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=Non
     return v1 + correction
 
 
-def accel_invariant_constant(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def accel_invariant_constant(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None,
+                             dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                             dt: float | None = None) -> np.ndarray:
     """(4.5) acceleration-invariant algorithm for the constant omega model.
 
     deltaV_s = DT1 x (DV1 - DV2/T). Exact for any a(t) when omega is constant.
@@ -171,7 +179,9 @@ def accel_invariant_constant(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=N
     return v1 + np.cross(th[:, 0], v1 - v2 / t)
 
 
-def rate_invariant_linear(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def rate_invariant_linear(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None,
+                          dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                          dt: float | None = None) -> np.ndarray:
     """(4.6) angular-rate-invariant algorithm for the linear acceleration model.
 
     deltaV_s = -6/T^2 DT2 x (DV2 - 2T/3 DV1) + 12/T^3 DT3 x (DV2 - T/2 DV1).
@@ -189,7 +199,9 @@ def rate_invariant_linear(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None
     return v1 + correction
 
 
-def rate_invariant_constant(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt=None) -> np.ndarray:
+def rate_invariant_constant(dtheta_sub: ArrayLike | None = None, dv_sub: ArrayLike | None = None,
+                            dtheta_r: ArrayLike | None = None, dv_r: ArrayLike | None = None,
+                            dt: float | None = None) -> np.ndarray:
     """(4.7) angular-rate-invariant algorithm for the constant acceleration model.
 
     deltaV_s = (DT2 x DV1)/T. Exact for any omega(t) when a is constant.

@@ -12,10 +12,12 @@ import numpy as np
 
 from ...earth import WGS84, EarthModel, mat_en
 from ...errors import ConfigError
+from ...types import FloatOrArray
 from .constellation import Constellation
 
 
-def solve_kepler(mean_anomaly, eccentricity, *, tol: float = 1e-14, max_iter: int = 30):
+def solve_kepler(mean_anomaly: FloatOrArray, eccentricity: FloatOrArray, *, tol: float = 1e-14,
+                 max_iter: int = 30) -> FloatOrArray:
     """Eccentric anomaly E with E - e sin E = M, by vectorised Newton iteration.
 
     Parameters
@@ -44,7 +46,7 @@ def solve_kepler(mean_anomaly, eccentricity, *, tol: float = 1e-14, max_iter: in
 
 
 def satellite_states(
-    constellation: Constellation, t, earth: EarthModel = WGS84
+    constellation: Constellation, t: FloatOrArray, earth: EarthModel = WGS84
 ) -> tuple[np.ndarray, np.ndarray]:
     """Satellite positions and velocities in ECEF.
 
@@ -103,7 +105,7 @@ def satellite_states(
 
 
 def elevation_azimuth(
-    receiver_e, sat_pos_e, earth: EarthModel = WGS84
+    receiver_e: np.ndarray, sat_pos_e: np.ndarray, earth: EarthModel = WGS84
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Elevation, azimuth and range of satellites seen from receivers.
 
@@ -156,7 +158,7 @@ class SkyGeometry:
 
 
 def sky_geometry(
-    t, position_e, constellation: Constellation, earth: EarthModel = WGS84
+    t: FloatOrArray, position_e: np.ndarray, constellation: Constellation, earth: EarthModel = WGS84
 ) -> SkyGeometry:
     """Satellite states and elevation/azimuth for receivers at ``position_e`` (k, 3).
 
