@@ -11,11 +11,17 @@ its sub-environments. No physics here: every number comes from the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from navsim.episode import EpisodeRecorder
 from navsim.naverror import local_level_factors
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.earth import EarthModel
+    from navsim.signals import ObservationCodec
+    from navsim.simulator import Chunk, ChunkBatch
 
 __all__ = ["PreparedChunk", "prepare_chunk", "chunk_truth_table", "held_flags", "EpisodeTape", "TRUTH_COLUMNS"]
 
@@ -59,10 +65,10 @@ class PreparedChunk:
     n_valid: list
     last_outage: bool
     last_n_valid: int
-    chunk: object
+    chunk: Chunk | ChunkBatch
 
 
-def chunk_truth_table(chunk, earth) -> tuple[np.ndarray, np.ndarray]:
+def chunk_truth_table(chunk: Chunk | ChunkBatch, earth: EarthModel) -> tuple[np.ndarray, np.ndarray]:
     """The truth rows (n, 13) in :data:`TRUTH_COLUMNS` order and, per step, the
     chunk-local index of the GNSS epoch at its end (-1: none), of a Chunk or ChunkBatch."""
     n = len(chunk)
@@ -79,7 +85,8 @@ def chunk_truth_table(chunk, earth) -> tuple[np.ndarray, np.ndarray]:
     return truth, epoch_at
 
 
-def held_flags(epoch_at: np.ndarray, outage_epoch, n_valid_epoch, held_outage, held_n_valid):
+def held_flags(epoch_at: np.ndarray, outage_epoch: np.ndarray, n_valid_epoch: np.ndarray, held_outage: bool | np.ndarray,
+               held_n_valid: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per step, the receiver-outage flag and valid-channel count of the latest epoch at
     or before the step, the held values (from the previous chunk) before the first one.
 
@@ -99,7 +106,8 @@ def held_flags(epoch_at: np.ndarray, outage_epoch, n_valid_epoch, held_outage, h
     return outage.astype(bool), n_valid.astype(np.int64)
 
 
-def prepare_chunk(chunk, earth, codec, held_outage: bool, held_n_valid: int, rows: bool = True) -> PreparedChunk:
+def prepare_chunk(chunk: Chunk | ChunkBatch, earth: EarthModel, codec: ObservationCodec, held_outage: bool, held_n_valid: int,
+                  rows: bool = True) -> PreparedChunk:
     """Prepare a :class:`~navsim.simulator.Chunk` (see :class:`PreparedChunk`).
 
     ``codec``: the env's :class:`navsim.signals.ObservationCodec`. ``held_outage``,

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -68,7 +69,7 @@ class TrainParameters:
     davis_b_n_per_mps: float = 40.0
     davis_c_n_per_mps2: float = 6.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("mass_kg", "max_traction_n", "max_power_w", "max_brake_decel_mps2"):
             value = getattr(self, name)
             if not (value > 0.0 and math.isfinite(value)):
@@ -93,7 +94,7 @@ class TrainPlant:
     params : TrainParameters
     """
 
-    def __init__(self, sin_grade, params: TrainParameters = TrainParameters()):
+    def __init__(self, sin_grade: Callable[[float], float], params: TrainParameters = TrainParameters()):
         self.sin_grade = sin_grade
         self.p = params
         self.s, self.v, self.a = 0.0, 0.0, 0.0

@@ -23,9 +23,11 @@ References
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from gymnasium import spaces
+from numpy.typing import ArrayLike
 
 from navsim.signals import (
     MAX_FORCE_MPS2,
@@ -40,6 +42,9 @@ from navsim.signals import (
     Layout,
     observation_signals,
 )
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.scenario import TimingConfig
 
 __all__ = ["ACTION_SCALE", "solution_to_action", "action_to_solution", "MAX_RATE_RAD_S", "MAX_FORCE_MPS2",
            "MAX_RANGE_M", "MAX_RANGE_RATE_MPS", "MAX_SAT_SPEED_MPS", "MAX_WHEEL_SPEED_MPS", "ACTION_LABELS",
@@ -60,7 +65,7 @@ def layout_space(layout: Layout) -> spaces.Dict:
     return spaces.Dict(entries)
 
 
-def observation_space(timing, orders: int, n_sats: int, odometer: bool = False) -> spaces.Dict:
+def observation_space(timing: TimingConfig, orders: int, n_sats: int, odometer: bool = False) -> spaces.Dict:
     """The Dict observation space of a scenario's time base (see :mod:`navsim.signals`).
 
     Parameters
@@ -87,12 +92,12 @@ scores equal those of the unscaled solution bit for bit. The ranges they give: l
 heading +-8 rad (estimators report [0, 2 pi) or (-pi, pi]), pitch +-2, roll +-4."""
 
 
-def solution_to_action(solution) -> np.ndarray:
+def solution_to_action(solution: ArrayLike) -> np.ndarray:
     """Normalised action of a solution ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]``."""
     return np.asarray(solution, dtype=float) / ACTION_SCALE
 
 
-def action_to_solution(action) -> np.ndarray:
+def action_to_solution(action: ArrayLike) -> np.ndarray:
     """The solution of a normalised action (exact inverse of :func:`solution_to_action`)."""
     return np.asarray(action, dtype=float) * ACTION_SCALE
 
@@ -115,7 +120,7 @@ def action_space(physical: bool = False) -> spaces.Box:
     return spaces.Box(low=low, high=high, dtype=np.float64)
 
 
-def check_action(action, shape: tuple[int, ...], expected: str, name: str = "action") -> np.ndarray:
+def check_action(action: ArrayLike, shape: tuple[int, ...], expected: str, name: str = "action") -> np.ndarray:
     """The action as a float64 array of ``shape``, checked before an env changes any state.
 
     The one action check of every env (single, vector, the two tasks, the SB3 adapter).

@@ -32,12 +32,16 @@ from __future__ import annotations
 import tempfile
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 from xml.dom import minidom
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from navsim.errors import ConfigError
 
 from .variables import Var, scalar_names
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.scenario import Scenario
 
 __all__ = ["build_ssp", "system_structure_xml", "SSD_FILE", "PARAMETER_SET"]
 
@@ -53,7 +57,7 @@ _SSC = {"real": "ssc:Real", "int": "ssc:Integer", "bool": "ssc:Boolean", "string
 _SSV = {"real": "ssv:Real", "int": "ssv:Integer", "bool": "ssv:Boolean", "string": "ssv:String"}
 
 
-def _value(var: Var, value) -> str:
+def _value(var: Var, value: Any) -> str:
     if var.type == "real":
         return repr(float(value))
     if var.type == "int":
@@ -112,7 +116,7 @@ def system_structure_xml(plant_table: list[Var], estimator_table: list[Var], *, 
     return minidom.parseString(tostring(root, "utf-8")).toprettyxml(indent="  ", encoding="UTF-8"), n
 
 
-def build_ssp(scenario, output: str | Path, *, estimator: str | None = None, estimator_options: str = "",
+def build_ssp(scenario: Scenario | str, output: str | Path, *, estimator: str | None = None, estimator_options: str = "",
               seed: int = 0, plant_parameters: dict | None = None) -> Path:
     """Write ``output`` (``.ssp``): plant and estimator FMUs (FMI 2.0) of ``scenario`` and
     ``SystemStructure.ssd`` connecting them (see the module docstring).

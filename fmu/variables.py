@@ -42,8 +42,13 @@ gives their SI base-unit exponents).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from navsim.signals import SIGNALS, Signal, signal
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.scenario import Scenario
+    from navsim.simulator import Simulator
 
 __all__ = [
     "Var",
@@ -148,7 +153,7 @@ class Dimensions:
     baro: bool = False
 
     @classmethod
-    def of_scenario(cls, scenario, channels: int) -> "Dimensions":
+    def of_scenario(cls, scenario: Scenario, channels: int) -> "Dimensions":
         """The dimensions of a :class:`navsim.scenario.Scenario` whose constellation has
         ``channels`` satellites (no simulator built)."""
         return cls(channels=int(channels), orders=int(scenario.imu.orders),
@@ -156,7 +161,7 @@ class Dimensions:
                    baro=bool(scenario.baro.enabled))
 
     @classmethod
-    def of(cls, simulator) -> "Dimensions":
+    def of(cls, simulator: Simulator) -> "Dimensions":
         """The dimensions of a built :class:`navsim.simulator.Simulator`."""
         return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),
                    samples_per_step=int(simulator.timing.samples_per_step),

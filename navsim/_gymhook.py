@@ -19,6 +19,9 @@ import importlib.abc
 import importlib.util
 import sys
 import warnings
+from importlib.machinery import ModuleSpec
+from types import ModuleType
+from typing import Sequence
 
 __all__ = ["install"]
 
@@ -38,7 +41,7 @@ def _register() -> None:
 class _AfterGymnasium(importlib.abc.MetaPathFinder):
     """One-shot finder: wraps the ``gymnasium`` loader so that the ids are registered after it ran."""
 
-    def find_spec(self, name, path=None, target=None):
+    def find_spec(self, name: str, path: Sequence[str] | None = None, target: ModuleType | None = None) -> ModuleSpec | None:
         if name != "gymnasium":
             return None
         _remove()
@@ -47,11 +50,11 @@ class _AfterGymnasium(importlib.abc.MetaPathFinder):
             return spec
         exec_module = spec.loader.exec_module
 
-        def exec_then_register(module):
+        def exec_then_register(module: ModuleType) -> None:
             exec_module(module)
             _register()
 
-        spec.loader.exec_module = exec_then_register  # this spec's loader instance only
+        spec.loader.exec_module = exec_then_register  # type: ignore[method-assign]  # this spec's loader instance only
         return spec
 
 

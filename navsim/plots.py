@@ -13,7 +13,7 @@ GNSS outages shaded (``navsim run --plot``); :func:`plot_bench_errors`,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # type hints only
 __all__ = ["plot_episode", "plot_errors", "plot_bench_errors", "plot_outage_drifts", "plot_mc_nees"]
 
 
-def _pyplot():
+def _pyplot() -> Any:
     try:
         import matplotlib
 
@@ -36,7 +36,7 @@ def _pyplot():
     return plt
 
 
-def _spans(t, flag):
+def _spans(t: np.ndarray, flag: np.ndarray) -> list[tuple[float, float]]:
     """(start, end) time spans where a boolean flag is True."""
     flag = np.asarray(flag, dtype=bool)
     if not flag.any():
@@ -98,12 +98,12 @@ def plot_episode(data: Mapping[str, np.ndarray], path: str | Path, title: str = 
 
 
 # ============================================================================ estimator errors
-def _shade_outages(ax, outages) -> None:
+def _shade_outages(ax: Any, outages: Sequence[Outage]) -> None:
     for o in outages:
         ax.axvspan(o.t_from, o.t_to, color="r", alpha=0.12, lw=0)
 
 
-def _band(ax, t, sigma, color, label=None) -> None:
+def _band(ax: Any, t: np.ndarray, sigma: np.ndarray | None, color: str, label: str | None = None) -> None:
     """Dashed +-3 sigma lines (sigma may be None or contain nan: not drawn there)."""
     if sigma is None or not np.isfinite(sigma).any():
         return
@@ -127,7 +127,7 @@ def plot_errors(series: ErrorSeries, path: str | Path, *, outages: Sequence[Outa
     ts = t[sl]
     sig = series.sigma[sl] if series.sigma is not None else None
 
-    def pick(x):
+    def pick(x: np.ndarray | None) -> np.ndarray | None:
         return None if x is None else np.asarray(x)[sl]
 
     fig, axes = plt.subplots(3, 2, figsize=(13, 10), sharex=True, constrained_layout=True)
@@ -160,7 +160,7 @@ def plot_errors(series: ErrorSeries, path: str | Path, *, outages: Sequence[Outa
     return _save(fig, plt, path)
 
 
-def _save(fig, plt, path) -> Path:
+def _save(fig: Any, plt: Any, path: str | Path) -> Path:
     """Save atomically (a temporary file beside ``path`` renamed into place) and close."""
     from .io import save_figure
 
@@ -171,7 +171,7 @@ def _save(fig, plt, path) -> Path:
 
 
 # ============================================================================ benchmarks
-def _finite(values) -> np.ndarray:
+def _finite(values: Iterable[float | None]) -> np.ndarray:
     x = np.asarray([np.nan if v is None else v for v in values], dtype=float)
     return x[np.isfinite(x)]
 

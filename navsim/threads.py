@@ -33,7 +33,7 @@ import contextlib
 import functools
 import threading
 from collections.abc import Callable, Iterator
-from typing import TypeVar
+from typing import Any, TypeVar
 
 __all__ = ["CORE_BLAS_THREADS", "blas_limit", "core_blas_threads", "set_core_blas_threads", "limited"]
 
@@ -60,7 +60,7 @@ def core_blas_threads() -> int | None:
     return CORE_BLAS_THREADS
 
 
-def _get_controller():
+def _get_controller() -> Any:
     global _controller
     if _controller is None:
         with _lock:
@@ -94,7 +94,7 @@ def limited(fn: F) -> F:
     """Decorator: run ``fn`` inside :func:`blas_limit`."""
 
     @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         with blas_limit():
             return fn(*args, **kwargs)
 
