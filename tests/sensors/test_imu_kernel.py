@@ -96,3 +96,25 @@ def test_compiled_equals_plain_python():
     np.testing.assert_array_equal(outs[0][1], outs[1][1])
     # first order, axis 1, sample (1, 2): base + factor[0, 0] z * sd, from the draws of slot 0
     assert outs[0][0][1, 2, 0, 1] == base_r[1, 2, 0, 1] + (factor[0, 0] * z[1, 2, 19]) * sd[0, 1]
+
+
+@pytest.mark.parametrize("order", [2, 4, 6])
+def test_kernel_equals_numpy_path_at_other_orders(order, monkeypatch):
+    """R = 4 takes the unrolled loop, other orders the general one: both the NumPy path's numbers."""
+    rng = np.random.default_rng(order)
+    n = 40
+    t = np.arange(n) * H
+    kern = H ** np.arange(1, order + 1) / np.cumprod(np.arange(1, order + 1))
+    dtheta_r = 1e-3 * kern[None, :, None] * (1.0 + rng.random((n, order, 3)))
+    dv_r = 9.8 * kern[None, :, None] * (1.0 + rng.random((n, order, 3)))
+    omega, force = 1e-3 * rng.random((n, 3)), 9.8 + rng.random((n, 3))
+    model = imu_mod.imu_preset("paper-2012")
+    results = []
+    for use in (True, False):
+        monkeypatch.setattr(imu_apply, "USE_KERNEL", use)
+        rngs = [np.random.default_rng(7 + j) for j in range(B)]
+        states = [ImuState.initial(model, r) for r in rngs]
+        results.append(apply_imu_errors_batch(t, H, dtheta_r, dv_r, omega, force, model, states, rngs)[0])
+    for field in ("dtheta_r", "dv_r", "rate_b", "accel_b"):
+        np.testing.assert_array_equal(getattr(results[0], field), getattr(results[1], field), err_msg=field)
+    assert np.abs(results[0].dtheta_r - dtheta_r[None]).max() > 0  # the noise is there

@@ -280,7 +280,7 @@ def apply_imu_errors_batch(
     sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
     tau = np.stack([s.bias_correlation_time_s for s in sensors])
     rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
-    zero_bias = np.zeros((members, n, 2, 3))
+    zero_bias = np.broadcast_to(0.0, (members, n, 2, 3))  # read-only zeros, not allocated (the states copy)
     if sigma_gm.any() or gm_start.any():
         phi = np.exp(-h / tau)
         gm_coef = sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau))  # (2, 3)

@@ -39,6 +39,9 @@ def white_noise_into(z, slot0, factor, scale_density, h, base_r, base_rate, out_
     """
     members, n = z.shape[0], z.shape[1]
     order = factor.shape[0]
+    if order == 4:  # the bundled scenarios' order: the same terms, unrolled
+        _white_noise_r4(z, slot0, factor, scale_density, h, base_r, base_rate, out_r, out_rate)
+        return
     for b in range(members):
         for k in range(n):
             for a in range(3):
@@ -52,6 +55,29 @@ def white_noise_into(z, slot0, factor, scale_density, h, base_r, base_rate, out_
                         out_rate[b, k, a] = base_rate[b, k, a] + noise / h
 
 
+def _white_noise_r4(z, slot0, factor, scale_density, h, base_r, base_rate, out_r, out_rate):
+    """:func:`white_noise_into` for R = 4, unrolled: the factor and the scales are read once
+    (into locals, not reloaded past the output stores), one axis at a time; the same
+    expressions in the same order as the general loop."""
+    members, n = z.shape[0], z.shape[1]
+    f00 = factor[0, 0]
+    f10, f11 = factor[1, 0], factor[1, 1]
+    f20, f21, f22 = factor[2, 0], factor[2, 1], factor[2, 2]
+    f30, f31, f32, f33 = factor[3, 0], factor[3, 1], factor[3, 2], factor[3, 3]
+    for a in range(3):
+        s0, s1, s2, s3 = scale_density[0, a], scale_density[1, a], scale_density[2, a], scale_density[3, a]
+        c0, c1, c2, c3 = slot0 + a, slot0 + 3 + a, slot0 + 6 + a, slot0 + 9 + a
+        for b in range(members):
+            for k in range(n):
+                z0, z1, z2, z3 = z[b, k, c0], z[b, k, c1], z[b, k, c2], z[b, k, c3]
+                noise = (f00 * z0) * s0
+                out_r[b, k, 0, a] = base_r[b, k, 0, a] + noise
+                out_rate[b, k, a] = base_rate[b, k, a] + noise / h
+                out_r[b, k, 1, a] = base_r[b, k, 1, a] + (f10 * z0 + f11 * z1) * s1
+                out_r[b, k, 2, a] = base_r[b, k, 2, a] + (f20 * z0 + f21 * z1 + f22 * z2) * s2
+                out_r[b, k, 3, a] = base_r[b, k, 3, a] + (f30 * z0 + f31 * z1 + f32 * z2 + f33 * z3) * s3
+
+
 _compiled: list = []
 
 
@@ -62,5 +88,7 @@ def kernel():
     if not _compiled:
         import numba
 
+        global _white_noise_r4
+        _white_noise_r4 = numba.njit(cache=True, nogil=True)(_white_noise_r4)
         _compiled.append(numba.njit(cache=True, nogil=True)(white_noise_into))
     return _compiled[0]
