@@ -84,7 +84,8 @@ def _die_with_parent(campaign_pid: int) -> None:
 
 
 # imported once by the fork server, so that forked workers start with the episode code loaded
-_FORKSERVER_PRELOAD = ["navsim.campaign", "navsim.report", "navsim.episode", "navsim.estimators", "navsim.metrics"]
+_FORKSERVER_PRELOAD = ["navsim.campaign", "navsim.report", "navsim.episode", "navsim.estimators", "navsim.metrics",
+                       "navsim.campaign.warm"]
 
 
 def _worker_context():
@@ -164,7 +165,7 @@ def _run_dask(todo: list[EpisodeTask], scheduler: str | Any, handle: Callable[[E
                     error = exc
             if error is not None:
                 out = {"status": "failed", "scores": None, "outages": None, "samples": None,
-                       "error": f"{type(error).__name__}: {error}", "wall_s": None, "worker": None}
+                       "error": f"{type(error).__name__}: {error}", "wall_s": None, "cpu_s": None, "worker": None}
             fut.release()
             handle(task, out)
     finally:

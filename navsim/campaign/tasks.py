@@ -56,14 +56,15 @@ def run_episode_task(task: EpisodeTask) -> dict:
     -------
     dict with ``status`` ("ok" or "failed"), ``scores`` (flat dict) , ``outages``
     (list of dicts), ``samples`` (float32 bytes of the horizontal error, m, at most
-    :data:`SAMPLES_PER_EPISODE` values), ``error`` (text), ``wall_s`` and ``worker``
+    :data:`SAMPLES_PER_EPISODE` values), ``error`` (text), ``wall_s``, ``cpu_s`` (CPU time
+    of the worker process for the episode; not stored in the database) and ``worker``
     (host:pid).
     """
     from ..metrics import error_series, score_episode
     from ..report import run_one
     from ..scenario import Scenario
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
         scenario = Scenario.from_dict(task.scenario_dict, base_dir=task.scenario_base_dir)
@@ -77,7 +78,8 @@ def run_episode_task(task: EpisodeTask) -> dict:
         stride = max(1, len(h) // SAMPLES_PER_EPISODE)
         return {"status": "ok", "scores": score.to_flat_dict(), "outages": [o.as_dict() for o in score.outages],
                 "samples": h[stride - 1::stride].astype(np.float32).tobytes(), "error": None,
-                "wall_s": time.perf_counter() - t0, "worker": worker}
+                "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "worker": worker}
     except Exception as exc:  # noqa: BLE001 - a failing episode is a result
         return {"status": "failed", "scores": None, "outages": None, "samples": None,
-                "error": f"{type(exc).__name__}: {exc}", "wall_s": time.perf_counter() - t0, "worker": worker}
+                "error": f"{type(exc).__name__}: {exc}", "wall_s": time.perf_counter() - t0,
+                "cpu_s": time.process_time() - c0, "worker": worker}
