@@ -33,7 +33,8 @@ PAGE = HERE / "RESULTS.md"
 DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"],
                                        "bench_campaign": ["--seeds", "4", "--duration", "50"],
                                        "demo_ppo_adaptive": ["--steps", "6000", "--seeds", "10"],
-                                       "demo_ppo_driving": ["--steps", "10000", "--seeds", "10"]}
+                                       "demo_ppo_driving": ["--steps", "10240", "--seeds", "10", "--log-std-init", "-0.5",
+                                                            "--lr", "1e-3"]}
 
 
 def _scripts() -> list[str]:

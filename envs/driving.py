@@ -10,10 +10,27 @@ truth. Precise stopping at a platform mark with GNSS lost in a tunnel is where
 navigation quality meets control.
 
 ## Action space
-``Box(-1, 1, (1,))``: the command u (traction for u > 0, brake for u < 0), held over
-the decision period. Values outside [-1, 1] are clipped to it; a non-finite value
-applies the full brake (u = -1, the safe command); a wrong shape or a non-real dtype
-raises :class:`~navsim.errors.ConfigError` before any state changes
+``Box(-1, 1, (1,))``, read according to ``action_mode``:
+
+* ``"command"`` (default): the command u (traction for u > 0, brake for u < 0), held over
+  the decision period;
+* ``"target_speed"``: a speed demand to the train's speed controller (the cruise control
+  of an automatic train operation), ``v_ref = (a + 1) / 2 * v_top`` with ``v_top`` the
+  timetable's cruise speed (``motion.cruise_speed_mps``; a = -1 asks to stop). The
+  controller sets the command from the same speed estimate the agent sees, once per
+  decision, and holds it over the period::
+
+      u = clip(k_v (v_ref - max(v_hat, 0)), -1, 1)                    (D.1)
+
+  with ``k_v = speed_gain`` (default 1.0 per m/s: with the 1 m/s^2 brake and 1-s
+  decisions a braking error is removed in one period, (D.1) is dead-beat under braking).
+  ``v_ref = 0`` never gives traction, so the train stops and stays stopped. The task
+  (reward, stop judgement, observation) is the same in both modes; only the actuator
+  the agent commands differs, so scores of the two modes compare directly.
+
+Values outside [-1, 1] are clipped to it; a non-finite value applies the full brake
+(u = -1, the safe command, in both modes); a wrong shape or a non-real dtype raises
+:class:`~navsim.errors.ConfigError` before any state changes
 (:func:`navsim.envs.spaces.check_action`).
 
 ## Observation space
@@ -21,7 +38,8 @@ raises :class:`~navsim.errors.ConfigError` before any state changes
 (km, [-1, 50]); estimated along-track speed / 30 m/s ([-1, 2]); time to the scheduled
 arrival at the next station / 600 s ([-5, 5]); the track grade at the estimated position
 x 10 ([-1, 1]); the estimator's along-track position sigma / 10 m ([0, 100]); the
-fraction of valid GNSS channels at the last epoch; the previous command; 1 while the
+fraction of valid GNSS channels at the last epoch; the previous command u (in both action
+modes the traction/brake command applied); 1 while the
 train dwells at a station; the fraction of stations still to serve; then what a driver
 reads off for the final approach, from the same estimate:
 
@@ -63,17 +81,21 @@ therefore costs the lateness of every station plus ``unserved`` per station; dri
 stop bonuses. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10, w_late 5
 per minute, w_early 0.2 per minute, overrun 20, unserved 40, stop_tolerance_m 2.
 
-Optional shaping (``progress_shaping`` = c_p per km, ``braking_shaping`` = c_b per m/s;
-both default 0: off). A potential-based term in the sense of Ng, Harada and Russell [2]
-is added to every period's reward::
+Optional shaping (``progress_shaping`` = c_p per km, ``braking_shaping`` = c_b per m/s,
+``approach_shaping`` = c_a; all default 0: off). A potential-based term in the sense of
+Ng, Harada and Russell [2] is added to every period's reward::
 
     F = Phi(t1) - Phi(t0),
     Phi = -c_p * max(0, s_last - s) / 1000 m - c_b * max(0, v - v_b(s_next - s))
+          - c_a * min(|s_next - s|, 50 m) / 50 m
 
 on the true motion, with ``s_last`` the last station's mark, ``s_next`` the next mark
 to serve and ``v_b`` the braking curve of the observation below (a service brake at
-half the train's maximum): progress along the line is paid as it is made, and speed in
-excess of what still stops the train at the next mark is charged while it lasts. Its
+half the train's maximum): progress along the line is paid as it is made, speed in
+excess of what still stops the train at the next mark is charged while it lasts, and
+the last 50 m to the next mark are paid as they are closed (and charged back when the
+mark is passed), so that a train stopped short of the mark sees what creeping on to it
+gains. The terms of ``s_next`` are 0 once no station is left (the terminal state). Its
 sum over an episode telescopes to ``Phi(end) - Phi(start)``, a term that depends only on
 where and how fast the train ends (and on the station switches, where ``s_next``
 changes); the optimal policies of the task are unchanged in the undiscounted sense of
@@ -95,7 +117,8 @@ scenario's time runs out (the duration is extended to 1.25 x the scheduled journ
 * v0: initial version; lateness charged as it accrues, unserved stations charged at the
   end, an overrun misses the station instead of ending the episode (issue 15); four
   final-approach entries appended to the observation and the optional progress shaping
-  (issue 15, the learning demo).
+  (issue 15, the learning demo); ``action_mode="target_speed"`` (issue 15, the learning
+  demo; the default mode unchanged).
 
 References
 ----------
@@ -223,10 +246,15 @@ class DrivingEnv(gym.Env):
     train : TrainParameters, optional
     truth_in_info : bool
         Put the true s, v, a in the info.
-    progress_shaping, braking_shaping : float
-        c_p (per km of progress toward the last mark) and c_b (per m/s above the braking
-        curve) of the optional potential-based shaping (default 0: the task's reward
-        only).
+    action_mode : {"command", "target_speed"}
+        What the action is (module docstring, "Action space"): the traction/brake command
+        (default) or the speed demand of (D.1).
+    speed_gain : float
+        k_v of (D.1), per m/s (target_speed mode only; default 1.0).
+    progress_shaping, braking_shaping, approach_shaping : float
+        c_p (per km of progress toward the last mark), c_b (per m/s above the braking
+        curve) and c_a (for the last 50 m to the next mark) of the optional
+        potential-based shaping (default 0: the task's reward only).
     **overrides
         Scenario sections.
     """
@@ -239,7 +267,9 @@ class DrivingEnv(gym.Env):
                  estimator_options: dict | None = None, decision_period_s: float = 1.0, slack: float = 0.05,
                  stop_tolerance_m: float = 2.0, weights: dict | None = None, train: TrainParameters | None = None,
                  truth_in_info: bool = False, progress_shaping: float = 0.0,
-                 braking_shaping: float = 0.0, render_mode: str | None = None, **overrides: Any) -> None:
+                 braking_shaping: float = 0.0, approach_shaping: float = 0.0, action_mode: str = "command",
+                 speed_gain: float = 1.0,
+                 render_mode: str | None = None, **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
 
@@ -275,10 +305,18 @@ class DrivingEnv(gym.Env):
         self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
         self.stop_tolerance_m = float(stop_tolerance_m)
         self.truth_in_info = bool(truth_in_info)
-        for name, value in (("progress_shaping", progress_shaping), ("braking_shaping", braking_shaping)):
+        for name, value in (("progress_shaping", progress_shaping), ("braking_shaping", braking_shaping),
+                            ("approach_shaping", approach_shaping)):
             if not (value >= 0.0 and math.isfinite(value)):
                 raise ConfigError(name, "a non-negative finite weight", value)
         self.progress_shaping, self.braking_shaping = float(progress_shaping), float(braking_shaping)
+        self.approach_shaping = float(approach_shaping)
+        self._shaped = bool(self.progress_shaping or self.braking_shaping or self.approach_shaping)
+        if action_mode not in ("command", "target_speed"):
+            raise ConfigError("action_mode", "'command' or 'target_speed'", action_mode)
+        if not (speed_gain > 0.0 and math.isfinite(speed_gain)):
+            raise ConfigError("speed_gain", "a positive finite gain, per m/s", speed_gain)
+        self.action_mode, self.speed_gain = action_mode, float(speed_gain)
         self._b_ref = 0.5 * self.plant.p.max_brake_decel_mps2  # service brake of the braking-curve entry
         self._line_speed = float(base.motion.cruise_speed_mps)
         self.render_mode = render_mode
@@ -339,6 +377,8 @@ class DrivingEnv(gym.Env):
         if target < len(self.marks) and self.braking_shaping:
             v_b = math.sqrt(2.0 * self._b_ref * max(float(self.marks[target]) - s, 0.0))
             phi -= self.braking_shaping * max(0.0, v - v_b)
+        if target < len(self.marks) and self.approach_shaping:
+            phi -= self.approach_shaping * min(abs(float(self.marks[target]) - s), 50.0) / 50.0
         return phi
 
     def _navigate(self, n: int):
@@ -368,11 +408,13 @@ class DrivingEnv(gym.Env):
         n = min(self.steps_per_decision, self.n_steps - self._k)
         dwelling = self.t < self.hold_until
         u = float(check_action(action, (1,), "1 real number in [-1, 1] (traction > 0, brake < 0)")[0])
+        if math.isfinite(u) and self.action_mode == "target_speed":  # (D.1) on the speed estimate
+            v_ref = 0.5 * (min(max(u, -1.0), 1.0) + 1.0) * self._line_speed
+            u = self.speed_gain * (v_ref - max(self._v_hat, 0.0))
         u = -1.0 if dwelling or not math.isfinite(u) else min(max(u, -1.0), 1.0)  # nan / inf: full brake
         self._u = 0.0 if dwelling else u
         k0 = self._k
-        phi0 = self._potential(self.plant.s, self.plant.v, self.target) if (
-            self.progress_shaping or self.braking_shaping) else 0.0
+        phi0 = self._potential(self.plant.s, self.plant.v, self.target) if self._shaped else 0.0
         s, v, a, energy_j = self.plant.advance(u, self.dt, n)
         if s[-1] > self.sim.track.length:
             s = np.minimum(s, self.sim.track.length)  # buffer stop at the end of the line
@@ -421,7 +463,7 @@ class DrivingEnv(gym.Env):
             reward -= w["unserved"] * unserved
             info["unserved"] = unserved
         info["task_reward"] = float(reward)
-        if self.progress_shaping or self.braking_shaping:  # potential-based, on the true motion
+        if self._shaped:  # potential-based, on the true motion
             reward += self._potential(float(s[-1]), float(v[-1]), self.target) - phi0
         if self.truth_in_info:
             info["truth"] = {"s": float(s[-1]), "speed": float(v[-1]), "accel": float(a[-1])}

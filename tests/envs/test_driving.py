@@ -15,6 +15,8 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 from navsim.envs.driving import braking_curve_driver as _driver  # noqa: E402
 from navsim.envs.plant import G0, TrainParameters, TrainPlant  # noqa: E402
 
+from navsim.errors import ConfigError  # noqa: E402
+
 FLAT = lambda s: 0.0  # noqa: E731
 SHORT = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 3.0}, {"s_m": 900.0, "dwell_s": 5.0}]}}
 
@@ -149,12 +151,13 @@ def test_reward_order_three_stations_three_held_out_seeds():
 def test_shaping_telescopes_and_leaves_the_task_reward_unchanged():
     """Potential-based shaping (Ng et al. 1999): over an episode the shaping terms sum to
     Phi(end) - Phi(start). Full traction from rest at 400 m drives through the 900-m mark
-    (an overrun: no station left, so Phi(end) = 0; Phi(start) = -c_p * 0.5 km, the
-    braking term 0 at rest): the shaping totals 0.5 c_p; the task reward is that of the
-    env without shaping, the same operations in the same order (bit for bit)."""
+    (an overrun: no station left, so Phi(end) = 0; Phi(start) = -c_p * 0.5 km - c_a, the
+    braking term 0 at rest, the approach term at its cap 500 m > 50 m): the shaping totals
+    0.5 c_p + c_a; the task reward is that of the env without shaping, the same operations
+    in the same order (bit for bit)."""
     full = lambda obs: np.ones(1, np.float32)  # noqa: E731
-    c_p, c_b = 20.0, 2.0
-    env = gym.make("navsim/TrainDriving-v0", progress_shaping=c_p, braking_shaping=c_b, **SHORT)
+    c_p, c_b, c_a = 20.0, 2.0, 7.0
+    env = gym.make("navsim/TrainDriving-v0", progress_shaping=c_p, braking_shaping=c_b, approach_shaping=c_a, **SHORT)
     obs, _ = env.reset(seed=5)
     shaped, task, braking_seen = [], [], False
     while True:
@@ -170,9 +173,60 @@ def test_shaping_telescopes_and_leaves_the_task_reward_unchanged():
         if term or trunc:
             break
     assert term and "overrun_m" in info and braking_seen
-    assert sum(shaped) - sum(task) == pytest.approx(0.5 * c_p, rel=1e-9)
+    assert sum(shaped) - sum(task) == pytest.approx(0.5 * c_p + c_a, rel=1e-9)
     plain = _episode(full, 5, SHORT)
     assert plain[0] == sum(task)
+
+
+# ---------------------------------------------------------------- action_mode="target_speed": the speed demand (D.1)
+def test_target_speed_mode_passes_check_env_and_rejects_bad_options():
+    env = gym.make("navsim/TrainDriving-v0", action_mode="target_speed", **SHORT)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    assert [str(w.message) for w in caught] == []
+    for bad in ({"action_mode": "speed"}, {"speed_gain": 0.0}, {"speed_gain": float("nan")}):
+        with pytest.raises(ConfigError):
+            gym.make("navsim/TrainDriving-v0", **SHORT, **bad)
+
+
+def test_target_speed_command_is_the_controller_on_the_estimate():
+    """(D.1): the command applied over a period (observation entry 6 after the step) is
+    clip(k_v ((a + 1) / 2 v_top - max(v_hat, 0)), -1, 1) with v_hat the speed estimate seen
+    before the step (entry 1 x 30 m/s, float32: ~1e-6 m/s, so 1e-5 in u); a = -1 never pulls."""
+    k_v = 0.8
+    env = gym.make("navsim/TrainDriving-v0", action_mode="target_speed", speed_gain=k_v, **SHORT)
+    v_top = env.unwrapped._line_speed
+    obs, _ = env.reset(seed=2)
+    actions = [-0.5] * 5 + [0.9] * 20 + [0.2] * 10 + [-1.0] * 15
+    checked = 0
+    for a in actions:
+        v_hat, dwelling = float(obs[1]) * 30.0, obs[7] > 0
+        obs, r, term, trunc, info = env.step(np.array([a], np.float32))
+        expected = 0.0 if dwelling else float(np.clip(k_v * (0.5 * (a + 1.0) * v_top - max(v_hat, 0.0)), -1, 1))
+        assert obs[6] == pytest.approx(expected, abs=1e-5)
+        if a == -1.0:
+            assert obs[6] <= 0.0
+        checked += not dwelling
+        if term or trunc:
+            break
+    assert checked > 30 and float(obs[1]) * 30.0 < 1.0  # the stop demand brought the train (nearly) to rest
+
+
+def test_target_speed_braking_curve_demand_serves_the_station():
+    """The braking curve as a speed demand (v_ref = min(cruise, sqrt(2 b d))) through (D.1):
+    the target-speed mode can express a driver that stops within the tolerance."""
+    env = gym.make("navsim/TrainDriving-v0", action_mode="target_speed", **SHORT)
+    v_top = env.unwrapped._line_speed
+    obs, _ = env.reset(seed=3)
+    while True:
+        v_ref = min(17.0, math.sqrt(2 * 0.45 * max(float(obs[0]) * 1000.0 - 0.5, 0.0)))
+        obs, r, term, trunc, info = env.step(np.array([2.0 * v_ref / v_top - 1.0], np.float32))
+        if term or trunc:
+            break
+    assert term and "overrun_m" not in info
+    (stop,) = info["stops"]
+    assert abs(stop["stop_error_m"]) <= 2.0
 
 
 def test_ppo_demo_pipeline_runs():
