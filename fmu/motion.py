@@ -64,7 +64,7 @@ class MotionMapping:
     s_scale: float = 1.0
     inputs: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.s_scale not in (1.0, -1.0):
             raise ConfigError("motion_map.s_scale", "+1 or -1", self.s_scale)
         if not math.isfinite(self.s_offset_m):

@@ -100,7 +100,7 @@ class Var:
         A key of :data:`UNITS`, or ``""`` (dimensionless, counts, flags, text).
     description : str
         One line: what it is, its frame, when it changes.
-    start : object
+    start : float, int, bool, str or None
         Start value (scalar; broadcast over ``shape``) for parameters and inputs,
         ``None`` for calculated outputs.
     shape : tuple of int
@@ -117,13 +117,13 @@ class Var:
     variability: str
     unit: str
     description: str
-    start: object = None
+    start: float | int | bool | str | None = None
     shape: tuple[int, ...] = ()
     group: str = ""
     low: float | None = None
     high: float | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.type not in ("real", "int", "bool", "string"):
             raise ValueError(f"Var.type: expected real/int/bool/string, got {self.type!r}")
         if self.unit and self.unit not in UNITS:

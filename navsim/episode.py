@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from .types import (
     Prior,
 )
 from .validation import check_episode_memory
+
+if TYPE_CHECKING:  # type hints only
+    from .earth import EarthModel
 
 __all__ = ["make_context", "measurements", "measurement_batch", "step_batch", "EpisodeRecord", "EpisodeRecorder",
            "run_episode"]
@@ -144,7 +147,7 @@ class EpisodeRecord:
     scenario: Scenario
     seed: int | None
     estimator: str
-    earth: object
+    earth: EarthModel
     t: np.ndarray
     truth_s: np.ndarray
     truth_lat: np.ndarray

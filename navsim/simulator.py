@@ -35,9 +35,10 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .earth import earth_model, mat_en
 from .errors import ConfigError
@@ -60,6 +61,11 @@ from .threads import limited
 from .truthgen import TruthGenerator
 from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
 from .validation import check_seed, check_steps, validate_scenario
+
+if TYPE_CHECKING:  # type hints only
+    from .earth import EarthModel
+    from .scenario import TimingConfig
+    from .track import Track
 
 __all__ = ["STREAMS", "Simulator", "SimulatorBatch", "ImuBlock", "Chunk", "ChunkBatch", "Prior", "Start", "build_track",
            "build_profile", "build_imu_model", "build_gnss", "build_gnss_error_model"]
@@ -208,7 +214,7 @@ class Start:
 
 
 # ============================================================================ builders
-def build_track(scenario: Scenario):
+def build_track(scenario: Scenario) -> Track:
     """The scenario's track object (bundled or from a file), on the scenario's Earth."""
     from . import track as track_mod
     from . import trackio
@@ -225,7 +231,7 @@ def build_track(scenario: Scenario):
     return track
 
 
-def build_profile(scenario: Scenario):
+def build_profile(scenario: Scenario) -> ConstantSpeed | Timetable | ExternalMotion:
     """The scenario's speed profile (a fresh :class:`ExternalMotion` for "external")."""
     m = scenario.motion
     if m.profile == "constant":
@@ -265,7 +271,7 @@ def _replace_checked(obj, overrides: dict, prefix: str):
         raise ConfigError(prefix, "valid field values", f"{overrides} ({exc})") from None
 
 
-def build_imu_model(scenario: Scenario):
+def build_imu_model(scenario: Scenario) -> imu_mod.ImuErrorModel:
     """The truth-side IMU error model: preset plus ``[imu.gyro]``/``[imu.accel]`` overrides."""
     model = imu_mod.imu_preset(scenario.imu.preset)
     changes = {}
@@ -276,7 +282,7 @@ def build_imu_model(scenario: Scenario):
     return dataclasses.replace(model, **changes) if changes else model
 
 
-def build_gnss(scenario: Scenario, earth):
+def build_gnss(scenario: Scenario, earth: EarthModel) -> tuple[gnss_mod.Constellation, gnss_mod.GnssErrorModel]:
     """Constellation and truth-side GNSS error model of the scenario."""
     cfg = scenario.gnss
     if cfg.constellation.startswith("yuma:"):
@@ -401,7 +407,7 @@ class Simulator:
             covariance=init.covariance(),
         )
 
-    def truth_at(self, t) -> TrueState:
+    def truth_at(self, t: ArrayLike) -> TrueState:
         """The true state at arbitrary times (s) within the episode."""
         return true_state(self.track, self.profile, t, self.oscillations)
 
@@ -676,7 +682,7 @@ class SimulatorBatch:
         return len(self.members)
 
     @property
-    def timing(self):
+    def timing(self) -> TimingConfig:
         return self.members[0].timing
 
     @property
@@ -687,7 +693,7 @@ class SimulatorBatch:
     def done(self) -> bool:
         return self.members[0].done
 
-    def reset(self, seeds) -> list[Start]:
+    def reset(self, seeds: Sequence[int | None]) -> list[Start]:
         """Reset every member; ``seeds`` is a sequence of B seeds (None: fresh entropy)."""
         seeds = list(seeds)
         if len(seeds) != len(self.members):

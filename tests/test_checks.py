@@ -52,15 +52,13 @@ PENDING: frozenset[str] = frozenset({
     "envs/navigation.py", "envs/render.py", "envs/sb3.py",
     "envs/vector.py", "fmu/build.py", "fmu/cli.py",
     "fmu/master.py", "fmu/motion.py", "fmu/runtime.py",
-    "fmu/variables.py", "navsim/episode.py", "navsim/estimators/__init__.py",
-    "navsim/estimators/_inserror/engine.py", "navsim/estimators/_inserror/model.py", "navsim/estimators/_inserror/terms.py",
-    "navsim/estimators/along_track.py", "navsim/estimators/filterpy_adapter.py", "navsim/estimators/filterpy_based.py",
-    "navsim/estimators/full_state.py", "navsim/estimators/gnss_only.py", "navsim/estimators/ins_only.py",
-    "navsim/estimators/loosely.py", "navsim/estimators/paper_ekf/filter.py", "navsim/estimators/paper_ekf/kernel.py",
-    "navsim/estimators/paper_ekf/numerics.py", "navsim/estimators/paper_ekf/printed.py", "navsim/estimators/paper_ekf/track_functions.py",
-    "navsim/estimators/tightly.py", "navsim/sensors/gnss/error_model.py", "navsim/sensors/imu/kernel.py",
-    "navsim/simulator.py", "navsim/strapdown/compiled.py", "navsim/strapdown/ins.py",
-    "navsim/strapdown/scan.py", "navsim/truthgen.py",
+    "navsim/estimators/__init__.py", "navsim/estimators/_inserror/engine.py", "navsim/estimators/_inserror/model.py",
+    "navsim/estimators/_inserror/terms.py", "navsim/estimators/along_track.py", "navsim/estimators/filterpy_adapter.py",
+    "navsim/estimators/full_state.py", "navsim/estimators/loosely.py", "navsim/estimators/paper_ekf/filter.py",
+    "navsim/estimators/paper_ekf/kernel.py", "navsim/estimators/paper_ekf/numerics.py", "navsim/estimators/paper_ekf/printed.py",
+    "navsim/estimators/paper_ekf/track_functions.py", "navsim/estimators/tightly.py", "navsim/sensors/imu/kernel.py",
+    "navsim/strapdown/compiled.py", "navsim/strapdown/ins.py", "navsim/strapdown/scan.py",
+    "navsim/truthgen.py",
 })
 
 

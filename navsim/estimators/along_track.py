@@ -201,7 +201,7 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 
 __all__ = ["AlongTrackFilter", "TrackTable"]
 
@@ -454,7 +454,7 @@ class AlongTrackOptions:
     ionosphere_tau_s: float = 1800.0
     troposphere_tau_s: float = 3600.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.lever_arm not in ("auto", "none"):
             raise ConfigError("along-track.lever_arm", "'auto' or 'none'", self.lever_arm)
         if self.odometer not in ("auto", "none"):
@@ -563,7 +563,7 @@ class AlongTrackFilter(NoiseScalable):
         self._table_key = None
 
     # ------------------------------------------------------------------ reset
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Build the map table (cached per track) and the initial state from the prior."""
         opt = self.options
         arm = getattr(context.gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if opt.lever_arm == "auto" else (0.0, 0.0, 0.0)

@@ -43,8 +43,11 @@ References
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
+from .base import Context, Prior
 from .loosely import LooselyCoupledEkf
 from .tightly import TightlyCoupledEkf, TightlyCoupledUkf, guarded_cholesky
 
@@ -61,7 +64,8 @@ class FilterpyUpdate:
         self._cls = ExtendedKalmanFilter
         self._filters: dict[tuple[int, int], object] = {}
 
-    def __call__(self, P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray):
+    def __call__(self, P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                 float]:
         n, m = P.shape[0], H.shape[0]
         kf = self._filters.get((n, m))
         if kf is None:
@@ -77,7 +81,7 @@ class FilterpyUpdate:
 class FilterpyLcEkf(LooselyCoupledEkf):
     """lc-ekf with filterpy's ExtendedKalmanFilter doing the measurement updates."""
 
-    def reset(self, context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         super().reset(context, prior)
         self.engine.kalman_update = FilterpyUpdate()
 
@@ -85,7 +89,7 @@ class FilterpyLcEkf(LooselyCoupledEkf):
 class FilterpyTcEkf(TightlyCoupledEkf):
     """tc-ekf with filterpy's ExtendedKalmanFilter doing the measurement updates."""
 
-    def reset(self, context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         super().reset(context, prior)
         self.kalman_update = FilterpyUpdate()
 
@@ -118,7 +122,8 @@ class FilterpyUnscentedUpdate:
             self._fallbacks += 1 + count
             return L.T
 
-    def __call__(self, mean, P, hx, z, R, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    def __call__(self, mean: np.ndarray, P: np.ndarray, hx: Callable[[np.ndarray], np.ndarray], z: np.ndarray, R: np.ndarray,
+                 alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0) -> tuple[np.ndarray, np.ndarray, float, int]:
         n, m = len(mean), len(z)
         key = (n, m, float(alpha), float(beta), float(kappa))
         kf = self._filters.get(key)
@@ -138,6 +143,6 @@ class FilterpyUnscentedUpdate:
 class FilterpyTcUkf(TightlyCoupledUkf):
     """tc-ukf with filterpy's UnscentedKalmanFilter (Merwe sigma points) doing the measurement updates."""
 
-    def reset(self, context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         super().reset(context, prior)
         self.unscented_update = FilterpyUnscentedUpdate()

@@ -77,7 +77,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .paper_ekf import input_polynomial_matrix
 
 __all__ = ["FullStateEkf"]
@@ -133,7 +133,7 @@ class FullStateEkf(NoiseScalable):
         self._ready = False
 
     # ------------------------------------------------------------------ set-up
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start an episode: model constants from the context, state from the prior."""
         if context.gnss.clock_modelled:
             raise ConfigError("full-state-ekf", "a scenario without a receiver clock (the model of 003 (1)-(3))",

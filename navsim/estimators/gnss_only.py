@@ -39,7 +39,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .loosely import gnss_fixes
 
 __all__ = ["GnssLeastSquares", "GnssConstantVelocity"]
@@ -139,7 +139,7 @@ class GnssLeastSquares(NoiseScalable):
         self.measurement_scale = float(measurement_scale)
         self.context: Context | None = None
 
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start from the prior position, velocity and covariance."""
         self.context = context
         self.earth = context.earth
@@ -225,7 +225,7 @@ class GnssConstantVelocity(NoiseScalable):
         self.measurement_scale = float(measurement_scale)
         self.kf = None
 
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Initialise the filter from the prior (ENU covariance rotated to ECEF)."""
         from filterpy.kalman import KalmanFilter
 

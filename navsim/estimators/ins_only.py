@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ._inserror import ErrorStateIns, ImuNoise
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 
 __all__ = ["InsOnly"]
 
@@ -60,7 +60,7 @@ class InsOnly(NoiseScalable):
         self.methods = dict(coning=coning, sculling=sculling, position=position)
         self.engine: ErrorStateIns | None = None
 
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start from the prior state and covariance."""
         noise = ImuNoise.from_nominal(context.imu, noise_scale=self.noise_scale, bias_scale=self.bias_scale)
         steps = max(1, round(self.covariance_period_s / context.nav_period_s))

@@ -149,7 +149,7 @@ from ._inserror import (
     lever_arm_terms,
     nis_threshold,
 )
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .tightly import atmosphere_delays
 
 __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_model"]
@@ -365,7 +365,7 @@ class LooselyCoupledEkf(NoiseScalable):
         self.last_update: dict = {}
 
     # ------------------------------------------------------------------------ interface
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start an episode from the prior (INS state and 9 x 9 covariance)."""
         noise = ImuNoise.from_nominal(context.imu, noise_scale=self.noise_scale, bias_scale=self.bias_scale)
         if self._scale["gyro_scale_sigma"] > 0.0 or self._scale["accel_scale_sigma"] > 0.0:  # (RS.1), (RS.2)

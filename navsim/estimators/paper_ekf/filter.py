@@ -18,7 +18,7 @@ import numpy as np
 from ...earth import SPHERICAL, EarthModel
 from ...errors import ConfigError
 from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from . import kernel as _kernel
 from .config import PaperEkfConfig
 from .numerics import CSTEP, check_rows, cross, input_polynomial_matrix, riccati_rk4_h
@@ -106,7 +106,7 @@ class PaperEkf(NoiseScalable):
         self._ready = False
 
     # ------------------------------------------------------------------ set-up
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start an episode: model constants from the context, state from the prior."""
         cfg = self.config
         self.context = context

@@ -16,9 +16,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...earth import WGS84, EarthModel
 from ...errors import ConfigError, check_nonnegative
+from ...types import FloatOrArray
 from .._common import frozen_array
 from .constants import C_LIGHT
 from .constellation import Constellation
@@ -193,25 +195,25 @@ class GnssErrorModel:
             C_LIGHT**2 * 2.0 * np.pi**2 * self.clock_h_2,
         )
 
-    def clock_allan_variance(self, tau) -> np.ndarray:
+    def clock_allan_variance(self, tau: FloatOrArray) -> np.ndarray:
         """Allan variance sigma_y^2(tau) = h0/(2 tau) + (2 pi^2/3) h_-2 tau of the clock."""
         tau = np.asarray(tau, dtype=float)
         return self.clock_h0 / (2.0 * tau) + 2.0 * np.pi**2 / 3.0 * self.clock_h_2 * tau
 
-    def ionosphere_delay_m(self, elevation, earth: EarthModel = WGS84) -> np.ndarray:
+    def ionosphere_delay_m(self, elevation: ArrayLike, earth: EarthModel = WGS84) -> np.ndarray:
         """Slant ionospheric delay, m: zenith delay x thin-shell obliquity factor."""
         elevation = np.asarray(elevation, dtype=float)
         ratio = earth.a * np.cos(elevation) / (earth.a + self.ionosphere_shell_height_m)
         return self.ionosphere_zenith_m / np.sqrt(1.0 - ratio**2)
 
-    def troposphere_delay_m(self, elevation, height_m) -> np.ndarray:
+    def troposphere_delay_m(self, elevation: ArrayLike, height_m: ArrayLike) -> np.ndarray:
         """Slant tropospheric delay, m: scaled zenith delay x DO-229 mapping function."""
         elevation = np.asarray(elevation, dtype=float)
         height = np.asarray(height_m, dtype=float)
         zenith = self.troposphere_zenith_m * np.exp(-height / self.troposphere_scale_height_m)
         return zenith * 1.001 / np.sqrt(0.002001 + np.sin(elevation) ** 2)
 
-    def multipath_sigma(self, elevation) -> np.ndarray:
+    def multipath_sigma(self, elevation: ArrayLike) -> np.ndarray:
         """Multipath standard deviation at elevation E, m: sigma_mp exp(-E / E0)."""
         elevation = np.clip(np.asarray(elevation, dtype=float), 0.0, None)
         return self.multipath_sigma_m * np.exp(
@@ -314,15 +316,15 @@ def _clock_cholesky(model: GnssErrorModel, dt: np.ndarray):
 
 
 def simulate_epochs(
-    t,
-    position_e,
-    velocity_e,
+    t: np.ndarray,
+    position_e: np.ndarray,
+    velocity_e: np.ndarray,
     constellation: Constellation,
     model: GnssErrorModel,
     state: GnssState,
     rng: np.random.Generator,
     earth: EarthModel = WGS84,
-    visible=None,
+    visible: np.ndarray | None = None,
     *,
     geometry: SkyGeometry | None = None,
 ) -> tuple[GnssEpochs, GnssState]:
@@ -367,15 +369,15 @@ def simulate_epochs(
 
 
 def simulate_epochs_batch(
-    t,
-    position_e,
-    velocity_e,
+    t: np.ndarray,
+    position_e: np.ndarray,
+    velocity_e: np.ndarray,
     constellation: Constellation,
     model: GnssErrorModel,
     states: Sequence[GnssState],
     rngs: Sequence[np.random.Generator],
     earth: EarthModel = WGS84,
-    visible=None,
+    visible: np.ndarray | None = None,
     *,
     geometry: SkyGeometry | None = None,
 ) -> tuple[GnssEpochs, list[GnssState]]:
