@@ -51,6 +51,7 @@ References
 from __future__ import annotations
 
 import os
+from typing import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -103,7 +104,7 @@ def increments(t_start: ArrayLike, t_end: ArrayLike) -> np.ndarray:
 _ALGORITHM = {"P": "matrizant (8)-(9)", "M": "reversible (11)"}
 
 
-def _stats(angles_rad) -> dict[str, tuple[float, float]]:
+def _stats(angles_rad: Iterable[np.ndarray]) -> dict[str, tuple[float, float]]:
     names = ("heading", "pitch", "roll")
     return {name: (float(np.degrees(a).mean()), float(np.degrees(a).std())) for name, a in zip(names, angles_rad)}
 
@@ -181,7 +182,7 @@ def run(plot_dir: str | None = None, quick: bool = False) -> list[dict]:
     return rows
 
 
-def _plot(plot_dir: str, ref_h, p, m, h: float) -> None:
+def _plot(plot_dir: str, ref_h: np.ndarray, p: np.ndarray, m: np.ndarray, h: float) -> None:
     import matplotlib
 
     matplotlib.use("Agg")

@@ -304,7 +304,8 @@ def slip_factor(accel: ArrayLike, model: OdometerModel) -> NDArray[np.float64]:
     return np.where(a > thr, model.slip_fraction, np.where(a < -thr, -model.slide_fraction, 0.0))
 
 
-def _renormalise_quantize(d: NDArray, p: float, acc: NDArray, count: NDArray, start_index: int):
+def _renormalise_quantize(d: NDArray, p: float, acc: NDArray, count: NDArray, start_index: int) -> tuple[NDArray, NDArray,
+                          NDArray]:
     """(OD.5) for B members at once: d (B, n); returns pulses (B, n), acc, count (B,)."""
     n = d.shape[1]
     out = np.empty(d.shape)

@@ -6,7 +6,7 @@ squares splines), with the fit errors in metres.
 
 import math
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any, Iterable, Union
 
 import numpy as np
 from numpy.polynomial import polynomial as npoly
@@ -58,7 +58,8 @@ class PolynomialFit:
         return max(self.max_cross_track_m, self.max_height_m)
 
 
-def _fit_errors(earth, phi, lam, h, lam_fit, dlam_fit, h_fit):
+def _fit_errors(earth: EarthModel, phi: np.ndarray, lam: np.ndarray, h: np.ndarray, lam_fit: np.ndarray, dlam_fit: np.ndarray,
+                h_fit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     r_n, r_e = earth.radii(phi)
     east = (lam - lam_fit) * (r_e + h) * np.cos(phi)
     slope = dlam_fit * (r_e + h) * np.cos(phi) / (r_n + h)  # tan(heading)
@@ -210,7 +211,7 @@ def fit_polynomial_track(
     return _make_fit(track, degree, xs, cross_o, dh_o, phi.size)
 
 
-def _clip_segments(segments, length):
+def _clip_segments(segments: Iterable[TrackSegment], length: float) -> tuple[TrackSegment, ...]:
     out = []
     for g in segments:
         if g.s_start <= length:
@@ -218,7 +219,8 @@ def _clip_segments(segments, length):
     return tuple(out)
 
 
-def _make_fit(track, degree, breakpoints, cross, dh, n_points) -> PolynomialFit:
+def _make_fit(track: Any, degree: int, breakpoints: np.ndarray, cross: np.ndarray, dh: np.ndarray,
+              n_points: int) -> PolynomialFit:
     return PolynomialFit(
         track=track,
         degree=int(degree),
