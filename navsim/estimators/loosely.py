@@ -457,6 +457,9 @@ class LooselyCoupledEkf(NoiseScalable):
                 extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
             return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov[0],
                             extra=extra)
+        if m.gnss is not None and self._odo is None and not self._with_lever and (
+                self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
+            return self._epoch_step(m)
         gnss = ((0, m.gnss),) if m.gnss is not None else ()
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
@@ -478,6 +481,38 @@ class LooselyCoupledEkf(NoiseScalable):
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
                         covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
                         extra=extra)
+
+    def _epoch_step(self, m: Measurement) -> Estimate:
+        """:meth:`step` at a GNSS epoch without odometer, barometer or lever arm: the
+        operations of :meth:`step_batch` on a batch of one (the fix of the epoch, the INS
+        step, the update), with the INS step on the engine's one-step path
+        (:meth:`ErrorStateIns.advance_step`, the same numbers) and no batch built."""
+        eng = self.engine
+        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes((m.gnss,), self.min_satellites, self._initial_e,
+                                                                 self._atmosphere, eng.earth)
+        rows, cov = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+        nis = nis_dof = None
+        if ok[0]:
+            value, dof = self._update(pos_e[0], cov_pos[0], vel_e[0], cov_vel[0])
+            self.last_update = {"index": 0, "n_valid": int(n_valid[0]), "nis": value}
+            row = eng.current_row().tolist()
+            covariance = eng.covariance[NAV, NAV].copy()
+            if not math.isnan(value):
+                nis, nis_dof = float(value), int(dof)
+        else:
+            row = rows[0].tolist()
+            covariance = cov[0]
+        self.diverged = self.diverged or eng.diverged
+        extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+        if self._fix_index is not None:
+            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
+        if self._baro is not None:
+            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
+            extra["baro_nis"] = self.baro_nis
+        extra["n_valid"] = self.last_update.get("n_valid", 0)
+        lat, lon, h, ve, vn, vu, heading, pitch, roll = row
+        return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=covariance,
+                        nis=nis, nis_dof=nis_dof, extra=extra)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
         """n steps at once: one strapdown call per GNSS interval, vectorised fixes."""
