@@ -912,6 +912,9 @@ class _TightlyCoupled(NoiseScalable):
             lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
             return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=c[0],
                             extra=self.last_extra)
+        if m.gnss is not None and self.engine is not None and not self._with_lever and (
+                self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
+            return self._epoch_step(m)
         out = self.step_batch(MeasurementBatch(
             np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
             np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else (),
@@ -921,6 +924,28 @@ class _TightlyCoupled(NoiseScalable):
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
                         covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
                         extra=self.last_extra)
+
+    def _epoch_step(self, m: Measurement) -> Estimate:
+        """:meth:`step` at a GNSS epoch without barometer update or lever arm: the operations
+        of :meth:`step_batch` on a batch of one (the INS step, the update), with the INS step
+        on the engine's one-step path (:meth:`ErrorStateIns.advance_step`, the same numbers)
+        and no batch built."""
+        eng = self.engine
+        rows, c = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+        value, d = self._update(m.gnss)
+        nis = nis_dof = None
+        if value is not None:
+            row = eng.current_row().tolist()
+            cov = eng.covariance[:9, :9].copy()
+            if not math.isnan(value):
+                nis, nis_dof = float(value), int(d)
+        else:
+            row = rows[0].tolist()
+            cov = c[0]
+        self.last_extra = self._extra()
+        lat, lon, h, ve, vn, vu, heading, pitch, roll = row
+        return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov, nis=nis,
+                        nis_dof=nis_dof, extra=self.last_extra)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
         """n steps: one INS integration per stretch between epochs, updates at epochs."""
