@@ -85,6 +85,7 @@ class ErrorStateIns:
         self.interval_steps = int(interval_steps)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
         self._resolved: dict = {}  # input shapes -> resolved (coning, sculling, position)
+        self._compiled_key = None  # the input shapes advance_step found fit for the compiled step
         self._kernel = None  # (compiled one-step kernel, Earth constants, step constants, dummy), on first use
         self._vec = None  # (13,) state array of the compiled one-step path, when it holds the state
         self.estimate_biases = bool(estimate_biases)
@@ -230,10 +231,13 @@ class ErrorStateIns:
         """
         key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
                dtheta_r.shape, dv_r.shape)
-        methods = self._resolved.get(key)
-        if (methods is None or (dtheta_sub is None) != (dv_sub is None) or tuple(methods) not in _one.ONE_STEP_METHODS
-                or key[2][0] < 4 or key[3][0] < 4 or not _compiled.available()):
-            return self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+        if key != self._compiled_key:  # the choice of path, made once per input layout
+            methods = self._resolved.get(key)
+            if (methods is None or (dtheta_sub is None) != (dv_sub is None)
+                    or tuple(methods) not in _one.ONE_STEP_METHODS or key[2][0] < 4 or key[3][0] < 4
+                    or not _compiled.available()):
+                return self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+            self._compiled_key = key
         if self._pending is not None:
             self._start_interval(self._pending)
         kern = self._kernel
@@ -252,12 +256,14 @@ class ErrorStateIns:
         self._flat = (v[0], v[1], v[2], v[6:9], v[9:13], (v[3], v[4], v[5]))
         self._state = None
         self._vec = vec
-        if not all(map(math.isfinite, v[:3] + v[6:9])):
+        # position and velocity finite: their sum is (a sum of finite values that overflows
+        # only takes the validation below, which then passes)
+        if not math.isfinite(v[0] + v[1] + v[2] + v[6] + v[7] + v[8]):
             self._vec = None
             self.state  # noqa: B018  (validates: the error of the array path)
-        f = out[9:].tolist()
+        f = out.tolist()
         fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
-        self._f_sum = [fs[0] + f[0], fs[1] + f[1], fs[2] + f[2]]
+        self._f_sum = [fs[0] + f[9], fs[1] + f[10], fs[2] + f[11]]
         self._f_count += 1
         cov = self._step_covariance()
         self._after_steps(1)
