@@ -1008,8 +1008,9 @@ class AlongTrackFilter(NoiseScalable):
         sol, cov = self._output_one(float(self.x[0]), float(self.x[1]), P)
         self.last_extra = self._extra(nis, dof)
         s = sol[0]
-        return Estimate(t=measurement.t, lat=s[0], lon=s[1], h=s[2], velocity_n=s[3:6], heading=s[6], pitch=s[7],
-                        roll=s[8], covariance=cov[0], nis=nis, nis_dof=dof if nis is not None else None,
+        lat, lon, h, _, _, _, heading, pitch, roll = s.tolist()  # floats, not NumPy scalars
+        return Estimate(t=measurement.t, lat=lat, lon=lon, h=h, velocity_n=s[3:6], heading=heading, pitch=pitch,
+                        roll=roll, covariance=cov[0], nis=nis, nis_dof=dof if nis is not None else None,
                         extra=self.last_extra)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:

@@ -1375,9 +1375,9 @@ class PaperEkf(NoiseScalable):
         extra = {"state": y, "state_cov": st[4].copy(), "diverged": False}
         if self.n_states > 5:
             extra.update(self._extra_states(y))
-        return Estimate(t=float(measurement.t), lat=float(sol[0]), lon=float(sol[1]), h=float(sol[2]),
-                        velocity_n=sol[3:6], heading=float(sol[6]), pitch=float(sol[7]), roll=float(sol[8]),
-                        covariance=cov9, nis=None, nis_dof=None, extra=extra)
+        lat, lon, h, _, _, _, heading, pitch, roll = sol.tolist()  # the floats of float(sol[i]), in one call
+        return Estimate(t=float(measurement.t), lat=lat, lon=lon, h=h, velocity_n=sol[3:6], heading=heading,
+                        pitch=pitch, roll=roll, covariance=cov9, nis=None, nis_dof=None, extra=extra)
 
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step: (14) over the step, (16) if an epoch ends it."""
