@@ -16,7 +16,8 @@ step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
    ``agent / batch`` is the figure the issue sets a goal for (<= 1.5). The last column is
    the largest position difference (m, local level) between the agent's solutions and
    the batch solutions over the episode: the step path must give the numbers of
-   ``run_episode``.
+   ``run_episode``. A second table splits the ``step`` and ``agent`` costs into the steps
+   that end at a GNSS epoch and the others (each call timed alone).
 2. **FMU doStep** under fmpy (FMI 2), communication step = one navigation step: an empty
    pythonfmu FMU (one output, ``do_step`` returns at once), the core's
    ``Simulator.step()``, the plant FMU, and the estimator FMU (lc-ekf) fed with the plant's
@@ -140,7 +141,48 @@ def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, 
         lines.append(f"| {name} | {b * 1e6:.1f} | {s * 1e6:.1f} | {a * 1e6:.1f} | {s / b:.2f} | {a / b:.2f} "
                      f"| {diff:.1e} |")
     lines += ["", "Goal (issue 11): agent / batch <= 1.5 for every row."]
+    lines += [""] + split_table(names, context, start, meas, observations, info, rounds)
     return lines, batch_cost
+
+
+def split_table(names, context, start, meas, observations, info, rounds: int) -> list[str]:
+    """Where the step-wise time goes: ``step`` and ``EstimatorAgent.act`` timed call by call
+    (CPU clock around each call, its own cost included), split into the steps that end at
+    a GNSS epoch and the others."""
+    from navsim.envs import EstimatorAgent
+    from navsim.estimators import make
+
+    clock = time.process_time
+    epoch = [m.gnss is not None for m in meas]
+    n_epoch = sum(epoch)
+    times: dict[tuple[str, str], list[float]] = {}
+    for _ in range(rounds):
+        for name in names:
+            est = make(name)
+            est.reset(context, start.prior)
+            agent = EstimatorAgent(make(name))
+            agent.reset(info)
+            for path, call, items in (("step", est.step, meas), ("agent", agent.act, observations[:len(meas)])):
+                at_epoch = other = 0.0
+                for item, is_epoch in zip(items, epoch):
+                    t0 = clock()
+                    call(item)
+                    dt = clock() - t0
+                    if is_epoch:
+                        at_epoch += dt
+                    else:
+                        other += dt
+                times.setdefault((name, path + " epoch"), []).append(at_epoch / max(n_epoch, 1))
+                times.setdefault((name, path + " other"), []).append(other / max(len(meas) - n_epoch, 1))
+    lines = [f"Where the step-wise time goes: each call timed alone (CPU clock around it), {n_epoch} steps "
+             f"ending at a GNSS epoch and {len(meas) - n_epoch} others; median of {rounds} round(s)", "",
+             "| estimator | step at an epoch (us) | step, other steps (us) | agent at an epoch (us) "
+             "| agent, other steps (us) |", "|---|---:|---:|---:|---:|"]
+    for name in names:
+        v = [statistics.median(times[(name, k)]) * 1e6 for k in ("step epoch", "step other", "agent epoch",
+                                                                   "agent other")]
+        lines.append(f"| {name} | {v[0]:.0f} | {v[1]:.1f} | {v[2]:.0f} | {v[3]:.1f} |")
+    return lines
 
 
 
