@@ -142,9 +142,9 @@ def _finish(lat_deg: ArrayLike, lon_deg: ArrayLike, h: ArrayLike, labels: Sequen
         raise TrackError(f"{source}: a track needs at least 2 points, got {lat_deg.size}")
     for i in range(lat_deg.size):
         if not -90.0 < lat_deg[i] < 90.0:
-            raise ConfigError(f"{labels[i]} latitude", "a latitude in (-90, 90) deg", lat_deg[i], source)
+            raise ConfigError(f"{labels[i]} latitude", "a latitude in (-90, 90) deg", float(lat_deg[i]), source)
         if not -180.0 <= lon_deg[i] <= 180.0:
-            raise ConfigError(f"{labels[i]} longitude", "a longitude in [-180, 180] deg", lon_deg[i], source)
+            raise ConfigError(f"{labels[i]} longitude", "a longitude in [-180, 180] deg", float(lon_deg[i]), source)
     lat = np.radians(lat_deg)
     lon = np.unwrap(np.radians(lon_deg))
     same = np.flatnonzero((np.diff(lat) == 0) & (np.diff(lon) == 0) & (np.diff(h) == 0))
