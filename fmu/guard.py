@@ -31,6 +31,17 @@ call to the shim, renamed ``<modelIdentifier>_pythonfmu.so`` beside it, after ch
   the instance stays in initialisation mode, so the host may set a valid value and call
   it again, or reset;
 
+* failed instances: ``freeInstance`` of an instance that returned a Fatal status is not
+  forwarded to the shim (the C++ instance and its Python objects are kept for the rest of
+  the process). pythonfmu's shims turn a Python exception into Fatal and, doing so,
+  release their references to the slave class, the slave instance and its log queue
+  (``handle_py_exception`` -> ``cleanPyObject``) without clearing the pointers; the
+  instance's destructor releases them again. Freeing a failed instance therefore
+  dropped references it did not own, and the objects were freed while still in use: a
+  corrupted heap found at the interpreter's exit (SIGSEGV or "corrupted double-linked
+  list" in the final garbage collection of a Python host). Together with the extra
+  references :func:`navsim.fmu.runtime.mark_failed` keeps, the counts stay balanced;
+
 each refusal returns ``fmi2Error``/``fmi3Error`` and logs one error-category line
 through the host's logger. :func:`compile_guard` builds it with gcc (Linux); without a
 compiler or the headers the FMU carries the bare shim (``navsim_fmu.json``:
@@ -219,7 +230,8 @@ static int is_parameter(unsigned int vr)
         elif short == "FreeInstance":
             body += [f"    Guard* g = find((void*){names[0]}, \"{name}\");",
                      "    if (!g) return;",
-                     f"    if ({ptr}) {ptr}(g->inner);",
+                     "    /* a failed instance is not handed to the shim: see 'Failed instances' above */",
+                     f"    if (g->state != S_FATAL && {ptr}) {ptr}(g->inner);",
                      "    g->freed = 1;  /* the Guard itself is kept: a stale pointer is recognised, never reused */",
                      "}"]
         elif not args or not args[0][0].startswith(inst_type):

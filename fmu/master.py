@@ -114,6 +114,7 @@ class _Fmi2Logs:
 
 
 _FMI2_LOGS = _Fmi2Logs()
+_KEPT: list = []  # instances that returned Fatal, never freed (FmuInstance.free)
 
 
 class FmuInstance:
@@ -144,6 +145,7 @@ class FmuInstance:
         self.log: list[tuple[int, str]] = []
         self.name = name
         self._freed = False
+        self._fatal = False  # a call returned Fatal: free() then keeps the instance (see free)
         self._instantiate(debug_logging)
 
     # -- life cycle ------------------------------------------------------------------------
@@ -193,6 +195,8 @@ class FmuInstance:
         except Exception as exc:
             status = getattr(exc, "status", None)
             label = {2: "discard", 3: "error", 4: "fatal"}.get(status, type(exc).__name__)
+            if status == 4:
+                self._fatal = True
             messages = "; ".join(m for _, m in self.log[seen:]) or str(exc)
             raise FmuCallError(f"{self.name}: {what} failed ({label}): {messages}") from exc
 
@@ -217,10 +221,24 @@ class FmuInstance:
         self._call("reset", self.fmu.reset)
 
     def free(self) -> None:
-        """Free the instance and unload the library (idempotent)."""
+        """Free the instance and unload the library (idempotent).
+
+        After a Fatal status the instance is not freed and the library stays loaded (FMI
+        2.0 section 2.1.3: after ``fmi2Fatal`` no function of the FMU may be called).
+        pythonfmu's shims release their Python references when they report Fatal and
+        again when the instance is freed, so freeing a failed instance of an FMU without
+        navsim's C guard corrupted the heap (see :mod:`navsim.fmu.guard`).
+        """
         if self._freed:
             return
         self._freed = True
+        if self._fatal:  # kept for the process's life, with the callbacks the FMU was given
+            _KEPT.append((self.fmu, getattr(self, "_callbacks", None), getattr(self, "_logger", None)))
+            if self.fmi == 2:
+                _FMI2_LOGS.forget(self._log_key)
+            if self._own_dir:  # a loaded library's file may go (Linux keeps the mapping)
+                shutil.rmtree(self.unzipdir, ignore_errors=True)
+            return
         if self.fmi == 2:
             _FMI2_LOGS.claim_proxy()
         self.fmu.freeInstance()

@@ -840,10 +840,13 @@ def guard_embedded_exit() -> bool:
 
 # Failure protocol. pythonfmu's C++ shim (0.7 and pythonfmu3 0.3.4) turns a Python
 # exception into a Fatal status and, in doing so, releases its references to the slave
-# class, the slave instance and its log queue (cleanPyObject) without forgetting them, so
-# freeing the instance releases them a second time. One extra reference per object is
-# kept here when an instance fails (a small, bounded leak per failed instance), and a
-# failed instance never raises again: later calls log, return zeros or refuse the step.
+# class, the slave instance and its log queue (cleanPyObject) without forgetting them, and
+# its destructor (freeInstance) releases them a second time. One extra reference per
+# object is kept here when an instance fails (a small, bounded leak per failed instance),
+# which balances the first release; the second is avoided by never handing a failed
+# instance to the shim's freeInstance (navsim's C guard, navsim.fmu.guard, and
+# FmuInstance.free keep it instead). A failed instance never raises again: later calls
+# log, return zeros or refuse the step.
 _FAILED: list = []
 
 
