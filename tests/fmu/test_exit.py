@@ -6,8 +6,10 @@ slave class, instance and log queue when they report Fatal (``handle_py_exceptio
 host that freed two or more failed instances (``tests/fmu/test_robustness.py`` does,
 with bad parameters) then had objects freed while still referenced, and crashed at exit
 in the final garbage collection (SIGSEGV, exit code 139, or "corrupted double-linked
-list", exit code 134), after every test had passed. The minimal reproduction below
-crashed in 5 of 5 runs for FMI 2 and for FMI 3 before the fix (navsim's C guard and
+list", exit code 134), after every test had passed. The minimal reproduction (then
+with a negative seed, Fatal before the guard answered bad parameters with an error;
+here with an output variable set, still Fatal) crashed in 5 of 5 runs for FMI 2 and
+for FMI 3 before the fix (navsim's C guard and
 ``FmuInstance.free`` no longer hand a failed instance to the shim's ``freeInstance``).
 It runs in a subprocess: the crash takes the process with it, at its exit.
 """
@@ -24,7 +26,8 @@ pytest.importorskip("fmpy")
 
 from test_lifecycle import _guarded  # noqa: E402
 
-#: instantiate, fail with a Fatal status (a bad parameter), free; three times per path
+#: instantiate, fail with a Fatal status (setting an output variable: pythonfmu turns the
+#: Python error into Fatal), free; three times per path
 REPRO = """
 import ctypes
 from navsim.fmu.master import FmuCallError, FmuInstance
@@ -32,11 +35,11 @@ from navsim.fmu.master import FmuCallError, FmuInstance
 def fail(path, name):
     inst = FmuInstance(path, name)
     try:
-        inst.initialize({{"seed": -3}})
+        inst.set({{"truth.s_m": 1.0}})
     except FmuCallError as exc:
         assert "(fatal)" in str(exc), exc
     else:
-        raise AssertionError("a negative seed was accepted")
+        raise AssertionError("an output variable was set")
     return inst
 
 for path, fmi in {fmus!r}:
@@ -94,7 +97,7 @@ def test_failed_instances_of_an_unguarded_fmu(fmi, scenario, tmp_path):
         for i in range(4):
             inst = FmuInstance({str(path)!r}, "p%d" % i)
             try:
-                inst.initialize({{"seed": -3}})
+                inst.set({{"truth.s_m": 1.0}})
             except FmuCallError:
                 pass
             inst.free()
