@@ -70,10 +70,11 @@ References
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import ArrayLike
 
 from navsim.episode import step_batch
 from navsim.errors import ConfigError
@@ -84,6 +85,11 @@ from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 from .spaces import check_action
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.scenario import Scenario
+
+    from .render import FrameView
 
 __all__ = ["AdaptiveFilterEnv", "NoiseAdapter"]
 
@@ -140,7 +146,8 @@ class AdaptiveFilterEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
 
-    def __init__(self, scenario="paper-2012", *, estimator: Any = "lc-ekf", estimator_options: dict | None = None,
+    def __init__(self, scenario: str | Scenario = "paper-2012", *, estimator: Any = "lc-ekf",
+                 estimator_options: dict | None = None,
                  decision_period_s: float = 1.0, max_scale: float = 10.0,
                  untuned_scale: tuple[float, float] = (1.0, 10.0), reward_cap: float = 1e4,
                  chunk_steps: int = 10_000, render_mode: str | None = None, **overrides: Any) -> None:
@@ -230,7 +237,7 @@ class AdaptiveFilterEnv(gym.Env):
         self._k = self._chunk.step0 + b
         return _Interval(self._chunk, a, b), out
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**63 - 1))
@@ -254,7 +261,7 @@ class AdaptiveFilterEnv(gym.Env):
             self.render()
         return self._features(out, chunk), info
 
-    def step(self, action):
+    def step(self, action: ArrayLike) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._k < 0 or self._k >= self.n_steps:
             raise RuntimeError("AdaptiveFilterEnv.step: call reset() first")
         a = check_action(action, (2,), "2 real numbers in [-1, 1] (log-scale factors on Q and R)")
@@ -285,7 +292,7 @@ class AdaptiveFilterEnv(gym.Env):
         return obs, reward, False, truncated, info
 
     # ------------------------------------------------------------------ rendering
-    def render_view(self):
+    def render_view(self) -> FrameView:
         """What a frame shows (:mod:`navsim.envs.render`): the estimator's path and error, the factors."""
         from .render import FrameView, tape_view
 
@@ -296,14 +303,14 @@ class AdaptiveFilterEnv(gym.Env):
         return tape_view(self.tape, self._k, self.tape.actions, 1.0, timing.nav_period_s, timing.duration_s,
                          timing.gnss_period_s, status=f"{self.estimator_name}: Q x {q:.3g}, R x {r:.3g}")
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
         from .render import render_env
 
         frame, self._renderer = render_env(self, self._renderer)
         return frame
 
-    def close(self):
+    def close(self) -> None:
         """Release the window (if any); harmless to call more than once."""
         if self._renderer is not None:
             self._renderer.close()

@@ -80,10 +80,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import ArrayLike
 
 from navsim.errors import ConfigError
 from navsim.naverror import local_level_error_scalar, wrap_angle, wrap_angle_scalar
@@ -146,7 +147,8 @@ class NavigationEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}  # per instance: 1 / nav_period_s
 
     def __init__(self, scenario: str | Scenario = "paper-2012", *, render_mode: str | None = None,
-                 truth_in_info: bool = False, reward_weights=(1.0, 0.0, 0.0), reward_cap: float = 1e4,
+                 truth_in_info: bool = False, reward_weights: Sequence[float] = (1.0, 0.0, 0.0),
+                 reward_cap: float = 1e4,
                  score: bool = True, chunk_steps: int = 10_000, physical_action: bool = False,
                  **overrides: Any) -> None:
         from navsim.episode import make_context
@@ -193,7 +195,7 @@ class NavigationEnv(gym.Env):
         self.agent_name = "agent"
 
     # ------------------------------------------------------------------ episode
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Start an episode. ``options={"agent": name}`` labels the episode score."""
         super().reset(seed=seed)
         if seed is None:
@@ -235,7 +237,7 @@ class NavigationEnv(gym.Env):
             info["truth"] = pc.truth[i, :9].copy()
         return info
 
-    def step(self, action):
+    def step(self, action: ArrayLike) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Score the solution of the last observed step and serve the next step."""
         k = self._k
         if k < 0 or k >= self.n_steps:
@@ -317,14 +319,14 @@ class NavigationEnv(gym.Env):
         return score_episode(record, track=self.sim.track)
 
     # ------------------------------------------------------------------ rendering
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window (:mod:`navsim.envs.render`)."""
         from .render import render_env
 
         frame, self._renderer = render_env(self, self._renderer)
         return frame
 
-    def close(self):
+    def close(self) -> None:
         """Release the window (if any); harmless to call more than once."""
         if self._renderer is not None:
             self._renderer.close()

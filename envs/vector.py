@@ -34,13 +34,14 @@ Where the time goes
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
+from numpy.typing import ArrayLike
 
 from navsim.errors import ConfigError
 from navsim.naverror import wrap_angle
@@ -76,7 +77,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": 20}
 
     def __init__(self, num_envs: int = 1, scenario: str | Scenario = "paper-2012", *, render_mode: str | None = None,
-                 truth_in_info: bool = False, reward_weights=(1.0, 0.0, 0.0), reward_cap: float = 1e4,
+                 truth_in_info: bool = False, reward_weights: Sequence[float] = (1.0, 0.0, 0.0),
+                 reward_cap: float = 1e4,
                  score: bool = True, chunk_steps: int | None = None, physical_action: bool = False,
                  max_episode_steps: int | None = None, threads: int = 1, **overrides: Any) -> None:
         from navsim.episode import make_context
@@ -140,7 +142,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         return self.batch.members
 
     # ------------------------------------------------------------------ reset
-    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None) -> tuple[dict[str, np.ndarray],
+              dict[str, Any]]:
         """Reset all sub-environments; ``seed`` int s gives sub-env j the seed s + j."""
         if options and "reset_mask" in options and not np.all(options["reset_mask"]):
             raise ConfigError("options.reset_mask", "all True (the native vector env resets all at once)",
@@ -211,7 +214,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         return info
 
     # ------------------------------------------------------------------ step
-    def step(self, actions):
+    def step(self, actions: ArrayLike) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Score the N solutions of the last observed step and serve the next step."""
         n = self.num_envs
         if self._k < 0:
@@ -283,7 +286,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
                                       self.action_scale)
         return score_episode(record, track=self.sims[j].track)
 
-    def close_extras(self, **kwargs) -> None:
+    def close_extras(self, **kwargs: Any) -> None:
         self.batch.close()
         self.batch.members = []
         self.tapes = None
