@@ -195,13 +195,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
+from ..types import FloatOrArray
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+
+if TYPE_CHECKING:  # type hints only
+    from ..track import Track
 
 __all__ = ["AlongTrackFilter", "TrackTable"]
 
@@ -231,7 +237,7 @@ class TrackTable:
         (AT.9), columns :attr:`ANT`.
     """
 
-    def __init__(self, track, step_m: float = 5.0, lever_arm_b=None):
+    def __init__(self, track: Track, step_m: float = 5.0, lever_arm_b: ArrayLike | None = None):
         from ..track import track_frame
 
         self.length = float(track.length)
@@ -295,7 +301,7 @@ class TrackTable:
         i = np.minimum(x.astype(int), self._n - 2)
         return i, x - i
 
-    def evaluate(self, s, columns=slice(None), derivative: int = 0) -> np.ndarray:
+    def evaluate(self, s: FloatOrArray, columns: slice | Sequence[int] = slice(None), derivative: int = 0) -> np.ndarray:
         """Hermite interpolant (derivative 0), its first or second s-derivative at s.
 
         Returns shape ``np.shape(s) + (k,)`` for a slice of columns, ``np.shape(s)`` for
@@ -316,11 +322,11 @@ class TrackTable:
         h00, h10, h01, h11 = 12 * u - 6, 6 * u - 4, 6 - 12 * u, 6 * u - 2
         return (h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1) * self._inv**2
 
-    def position_e(self, s) -> np.ndarray:
+    def position_e(self, s: FloatOrArray) -> np.ndarray:
         """ECEF position of the track at s, (..., 3) m."""
         return self.r_ref + self.evaluate(s, self.R_E)
 
-    def rotation_per_m(self, s) -> np.ndarray:
+    def rotation_per_m(self, s: FloatOrArray) -> np.ndarray:
         """Track-frame rotation per metre in ENU axes (linear interpolation), (..., 3) rad/m."""
         i, u = self._index(s)
         u = u[..., None]
@@ -557,7 +563,7 @@ class AlongTrackFilter(NoiseScalable):
     NOISE_MEASUREMENT_SIGMA = ('sigma_pr', 'sigma_rate')
     # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
-    def __init__(self, **options):
+    def __init__(self, **options: Any) -> None:
         self.options = AlongTrackOptions(**options)
         self.table: TrackTable | None = None
         self._table_key = None

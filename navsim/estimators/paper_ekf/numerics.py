@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
@@ -36,11 +37,12 @@ def input_polynomial_matrix(orders: int) -> np.ndarray:
     return np.linalg.inv(m)
 
 
-def cross(u, v):
+def cross(u: Sequence[float], v: Sequence[float]) -> tuple[float, float, float]:
     return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
 
 
-def riccati_rk4(P, A, hneg, Q, s, sig2, tau):
+def riccati_rk4(P: np.ndarray, A: np.ndarray, hneg: np.ndarray, Q: np.ndarray, s: np.ndarray, sig2: float,
+                tau: float) -> np.ndarray:
     """RK4 of R' = A R + R A^T + Q - (R h + S)(R h + S)^T / sigma^2 (14), frozen coefficients.
 
     Written with few numpy calls (each costs microseconds on 5 x 5 matrices).
@@ -49,7 +51,7 @@ def riccati_rk4(P, A, hneg, Q, s, sig2, tau):
     inv = 1.0 / sig2
     multiply_outer = np.multiply.outer
 
-    def rhs(R):
+    def rhs(R: np.ndarray) -> np.ndarray:
         AR = A @ R
         AR += AR.T
         AR += Q
@@ -73,7 +75,7 @@ def riccati_rk4(P, A, hneg, Q, s, sig2, tau):
     return k2
 
 
-def riccati_rk4_h(P, H, tau, work):
+def riccati_rk4_h(P: np.ndarray, H: np.ndarray, tau: float, work: tuple[np.ndarray, ...]) -> np.ndarray:
     """RK4 of (14)'s Riccati equation written as R' = [R; I]^T H [R; I] (frozen H).
 
     The same step as :func:`riccati_rk4` (equal to rounding) in fewer and cheaper numpy
@@ -110,13 +112,13 @@ def riccati_rk4_h(P, H, tau, work):
     return out
 
 
-def check_rows(rows) -> None:
+def check_rows(rows: Sequence[Sequence[float]]) -> None:
     """:func:`check_covariance` on P.tolist() (the rows are needed for the gain anyway)."""
     if not (math.isfinite(sum(map(sum, rows))) and min([r[i] for i, r in enumerate(rows)]) >= 0.0):
         raise FloatingPointError("non-finite or indefinite covariance")
 
 
-def check_covariance(P) -> None:
+def check_covariance(P: np.ndarray) -> None:
     """Raise FloatingPointError when P is non-finite or has a negative diagonal."""
     d = P.diagonal()
     if not (math.isfinite(float(P.sum())) and float(d.min()) >= 0.0):

@@ -19,7 +19,8 @@ from .track_functions import TrackFunctions
 __all__ = ["printed_state_rhs", "printed_observer_13"]
 
 
-def printed_state_rhs(Y, omega_b, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float) -> np.ndarray:
+def printed_state_rhs(Y: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, t: float, track_functions: TrackFunctions, r: float,
+                      omega_earth: float) -> np.ndarray:
     """Appendix 2's F(Y, t) transcribed literally (printed Phi(beta, gamma), printed +centrifugal).
 
     For checks only (spherical Earth). Y = [alpha, beta, gamma, phi, V_Y].
@@ -35,7 +36,7 @@ def printed_state_rhs(Y, omega_b, f_b, t, track_functions: TrackFunctions, r: fl
     return np.concatenate([phi_printed @ omega_b, [V / rh, vdot]])
 
 
-def printed_observer_13(Y, f_b, t, track_functions: TrackFunctions, r: float, omega_earth: float,
+def printed_observer_13(Y: np.ndarray, f_b: np.ndarray, t: float, track_functions: TrackFunctions, r: float, omega_earth: float,
                         centrifugal_sign: float = 1.0) -> tuple[float, np.ndarray]:
     """(13) transcribed literally: H_a(Y, t) and H_w (1 x 3), with the c_ij of C = D B^T.
 
