@@ -41,6 +41,13 @@ call to the shim, renamed ``<modelIdentifier>_pythonfmu.so`` beside it, after ch
   corrupted heap found at the interpreter's exit (SIGSEGV or "corrupted double-linked
   list" in the final garbage collection of a Python host). Together with the extra
   references :func:`navsim.fmu.runtime.mark_failed` keeps, the counts stay balanced;
+* the shim's exit: pythonfmu keeps its interpreter state in a static
+  ``std::shared_ptr<PyState>`` that an ELF destructor (``finalizePythonInterpreter``)
+  resets after the C++ exit handlers have destroyed it, a second release of freed
+  memory when the shim is still loaded at exit; the guard calls
+  ``finalizePythonInterpreter`` itself from an exit handler registered after the shim
+  is loaded (it runs first) and keeps itself loaded (``RTLD_NODELETE``) so that the
+  handler only runs at exit;
 
 each refusal returns ``fmi2Error``/``fmi3Error`` and logs one error-category line
 through the host's logger. :func:`compile_guard` builds it with gcc (Linux); without a
@@ -150,6 +157,9 @@ static __thread char refused_msg[1024];
 void navsim_guard_refuse(const char* msg);
 void navsim_guard_refuse(const char* msg) {{ refused = 1; snprintf(refused_msg, sizeof refused_msg, "%s", msg ? msg : ""); }}
 
+static void (*shim_finalize)(void) = NULL;
+static void finalize_shim_at_exit(void) {{ if (shim_finalize) shim_finalize(); }}
+
 static void* real(const char* name)
 {{
     if (!shim) {{
@@ -161,6 +171,14 @@ static void* real(const char* name)
         snprintf(slash ? slash + 1 : path, sizeof path - (size_t)(slash ? slash + 1 - path : 0), "%s", "{shim_name}");
         shim = dlopen(path, RTLD_NOW | RTLD_LOCAL);
         if (!shim) {{ fprintf(stderr, "navsim FMU: cannot load %s: %s\\n", path, dlerror()); return NULL; }}
+        /* pythonfmu resets its static PyState from an ELF destructor that runs after the C++
+           exit handlers destroyed it (a second release at exit): reset it first, from an exit
+           handler registered after the shim's, with this library kept loaded until exit */
+        *(void**)(&shim_finalize) = dlsym(shim, "finalizePythonInterpreter");
+        if (shim_finalize) {{
+            dlopen(info.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+            atexit(finalize_shim_at_exit);
+        }}
     }}
     return dlsym(shim, name);
 }}
