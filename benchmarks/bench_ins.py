@@ -20,9 +20,11 @@ at 1.29 M samples/s warm on a quiet machine of this kind.
 
 * with ``--kernels`` first a table per navigation update, CPU time, interleaved repeats:
   ``method="compiled"`` (the sequential loop compiled by numba,
-  :mod:`navsim.strapdown.compiled`), ``method="scan"``, pyins's numba kernel and a plain
-  compiled loop of quaternion/velocity updates written here (numba; no Earth model), the
-  issue's reference.
+  :mod:`navsim.strapdown.compiled`), the same kernel called alone into output arrays
+  written once before (``integrate_body_terms`` allocates its (n + 1)-row outputs per
+  call, and their first touch costs page faults, which a loaded machine makes dear),
+  ``method="scan"``, pyins's numba kernel and a plain compiled loop of quaternion/velocity
+  updates written here (numba; no Earth model, no outputs stored), the issue's reference.
 
 Run: ``python benchmarks/bench_ins.py [--kernels] [steps ...]`` (default 100000 1000000).
 """
@@ -189,6 +191,14 @@ def kernel_table(n: int = 200_000, repeat: int = 5) -> None:
         integrate_body_terms(state, *(a[:10] if isinstance(a, np.ndarray) else a for a in args), method="compiled")
         runs["navsim compiled loop (numba), two-sample + trapezoid"] = lambda: integrate_body_terms(
             state, *args, method="compiled")
+        # the same kernel call into output arrays allocated and written once before: without
+        # the page faults of integrate_body_terms' fresh (n + 1)-row outputs (80 bytes a step)
+        kern, consts = compiled.kernel(), compiled.earth_constants(WGS84)
+        start = np.array([state.lat, state.lon, state.h, *state.compensation, *state.velocity_n, *state.quat_nb])
+        outs = (np.empty((3, n + 1)), np.empty((n + 1, 3)), np.empty((n + 1, 4)), np.empty(3))
+        qb, dvb, no_ds = np.ascontiguousarray(terms.quat_body), np.ascontiguousarray(terms.dv_body), np.zeros((1, 3))
+        runs["navsim compiled loop, the kernel alone into reused outputs"] = lambda: kern(
+            consts, start, qb, dvb, no_ds, False, True, DT, *outs)
     runs["navsim scan (NumPy), two-sample + trapezoid"] = lambda: integrate_body_terms(state, *args, method="scan")
     pyins = pyins_runners(n)
     if pyins is not None:
