@@ -351,8 +351,8 @@ class ExternalMotion:
 
     def __init__(self, t0: float = 0.0, s0: float = 0.0, speed0: float = 0.0, accel0: float = 0.0):
         # growing buffers (capacity doubles), so pushing and evaluating stay O(1) / O(log n)
-        self._tbuf = np.empty(1024)
-        self._xbuf = np.empty((1024, 3))
+        self._tbuf: np.ndarray = np.empty(1024)
+        self._xbuf: np.ndarray = np.empty((1024, 3))
         self._n = 1
         self._tbuf[0] = float(t0)
         self._xbuf[0] = (float(s0), float(speed0), float(accel0))

@@ -391,7 +391,7 @@ def visibility_batch(
     for start, end in model.arc_windows_m:
         receiver_outage |= (s >= start) & (s < end)
 
-    mask = np.full((k, m), np.radians(model.elevation_mask_deg))
+    mask: np.ndarray = np.full((k, m), np.radians(model.elevation_mask_deg))
     canyons = dict(model.canyon_masks_deg)
     tunnels = set(model.tunnel_kinds)
     relative = azimuth - heading[:, None]

@@ -223,7 +223,7 @@ class PolynomialTrack(_LatitudeTrack):
         """
         # p(phi - phi0) re-expanded about 0
         shifted = Polynomial(self.lam_coeffs)(Polynomial([-self.phi0, 1.0]))
-        P = shifted.coef.copy()
+        P: np.ndarray = shifted.coef.copy()  # any shape: np.pad below returns the general type
         P[0] += self.lam0
         P = np.pad(P, (0, max(0, self.lam_coeffs.size - P.size)))
         a = self.h_coeffs if self.h_coeffs.ndim == 2 else self.h_coeffs[None, :]
@@ -238,7 +238,7 @@ class PolynomialTrack(_LatitudeTrack):
         P = _as_coeffs("P", P, 1)
         A = _as_coeffs("A", A, (1, 2))
         phi0 = float(phi_start if phi0 is None else phi0)
-        p_shift = Polynomial(P)(Polynomial([phi0, 1.0])).coef
+        p_shift: np.ndarray = Polynomial(P)(Polynomial([phi0, 1.0])).coef
         p_shift = np.pad(p_shift, (0, max(0, P.size - p_shift.size)))
         if lam0 is None:
             lam0 = float(p_shift[0])
