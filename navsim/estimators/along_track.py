@@ -205,6 +205,7 @@ from ..errors import ConfigError
 from ..rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
 from ..types import FloatOrArray
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from .tightly import slant_maps
 
 if TYPE_CHECKING:  # type hints only
     from ..track import Track
@@ -745,10 +746,8 @@ class AlongTrackFilter(NoiseScalable):
         up = np.array([math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)])
         los = sat_pos_e - self.table.position_e(s)
         sin_e = (los @ up) / np.sqrt(np.einsum("mi,mi->m", los, los))
-        k = self.atm_k
-        obliquity = 1.0 / np.sqrt(1.0 - k * k * (1.0 - sin_e * sin_e))  # thin shell, (TC.6)
-        mapping = 1.001 / np.sqrt(0.002001 + sin_e * sin_e)  # RTCA DO-229D, (TC.6)
-        return obliquity, math.exp(-h / self.atm_scale_height) * mapping
+        obliquity, mapping, height = slant_maps(sin_e, self.atm_k, h, self.atm_scale_height)  # (TC.6)
+        return obliquity, height * mapping
 
     def _update(self, obs) -> tuple[float | None, int]:
         use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m)

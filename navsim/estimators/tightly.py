@@ -343,8 +343,9 @@ def _sin_elevation(los, rho, c_en):
     return np.einsum("...mi,...i->...m", los, c_en[..., 2, :]) / rho
 
 
-def _maps(s, k, h, scale_height_m):
-    """F, m and the tropospheric height factor from s = sin E (TC.6)."""
+def slant_maps(s, k, h, scale_height_m):
+    """F, m and the tropospheric height factor exp(-h / H_T) from s = sin E (TC.6): the thin-shell
+    ionospheric obliquity with k = a / (a + shell height), the RTCA DO-229D mapping m(E)."""
     F = 1.0 / np.sqrt(1.0 - k * k * (1.0 - s * s))
     m = 1.001 / np.sqrt(0.002001 + s * s)
     return F, m, np.exp(-np.asarray(h, dtype=float) / scale_height_m)
@@ -352,7 +353,7 @@ def _maps(s, k, h, scale_height_m):
 
 def _slant(s, h, ionosphere_zenith_m, troposphere_zenith_m, k, scale_height_m):
     """Slant delays (TC.6) from s = sin E; zenith delays scalar or (N,)."""
-    F, m, height = _maps(s, k, h, scale_height_m)
+    F, m, height = slant_maps(s, k, h, scale_height_m)
     iono = np.asarray(ionosphere_zenith_m, dtype=float)[..., None] * F
     tropo = (np.asarray(troposphere_zenith_m, dtype=float) * height)[..., None] * m
     return iono, tropo
@@ -365,7 +366,7 @@ def _slant_partials(s, los, rho, c_en, lat, h, ionosphere_zenith_m, troposphere_
     ``vertical_tilt=False`` leaves out the tilt of the local vertical: the partials for
     a displacement of the antenna alone, the ENU axes staying those of the INS (TC.9)."""
     r_n, r_e_rad = (float(x) for x in earth.radii(lat))
-    F, m, height = _maps(s, k, h, scale_height_m)
+    F, m, height = slant_maps(s, k, h, scale_height_m)
     t_h = troposphere_zenith_m * height
     u = los / rho[:, None]
     east, north, up = c_en
