@@ -39,10 +39,13 @@ LINE = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 5.0}, {"s_m": 900.0, "
 
 def note(res):
     served = [s for _, i in res for s in i["stops"] if "stop_error_m" in s]
-    err = np.mean([abs(s["stop_error_m"]) for s in served]) if served else float("nan")
+    err = np.array([abs(s["stop_error_m"]) for s in served])
+    errs = f"stop error mean {err.mean():.2f} m, max {err.max():.2f} m" if len(err) else "no stop"
     over = sum(1 for _, i in res for s in i["stops"] if "overrun_m" in s)
-    return (f"{len(served)}/{len(res)} stops served (mean abs. stop error {err:.2f} m), {over} overruns, "
-            f"unserved {sum(i.get('unserved', 0) for _, i in res)}")
+    short = sum(i.get("unserved", 0) - i.get("missed", 0) for _, i in res)
+    late = [s["late_s"] for s in served]
+    lates = f", arrival vs schedule {np.mean(late):+.1f} s" if late else ""
+    return f"{len(served)}/{len(res)} stations served ({errs}{lates}), {over} overruns, {short} never reached"
 
 
 if __name__ == "__main__":
@@ -71,7 +74,8 @@ if __name__ == "__main__":
                                         "approach_shaping": args.approach_shaping},
                           ppo_kwargs={"learning_rate": args.lr, "gamma": args.gamma, "ent_coef": args.ent_coef},
                           policy_kwargs={"log_std_init": args.log_std_init})
-    baselines = {"constant command u = 0.3": lambda obs: np.array([0.3], np.float32),
+    baselines = {"standing still (u = -1)": lambda obs: np.array([-1.0], np.float32),
+                 "constant command u = 0.3": lambda obs: np.array([0.3], np.float32),
                  "full traction u = 1": lambda obs: np.array([1.0], np.float32),
                  "braking-curve driver (reference)": braking_curve_driver}
     # the same task and seeds; the PPO policy acts through its own action mode, the baselines through the command
@@ -81,7 +85,7 @@ if __name__ == "__main__":
                          seeds),
                **compare("navsim/TrainDriving-v0", LINE, baselines, seeds)}
     report("navsim/TrainDriving-v0", LINE, results, stats, seeds,
-           ["constant command u = 0.3", "full traction u = 1", "constant speed demand a = 1 (line speed)",
+           ["standing still (u = -1)", "constant command u = 0.3", "full traction u = 1", "constant speed demand a = 1 (line speed)",
             "braking-curve driver (reference)"], extra=note,
            figure=None if args.quick or args.figure == "none" else args.figure,
            train_note=f"; PPO in action_mode={args.action_mode!r}, training with progress_shaping={args.shaping:g}, "

@@ -60,26 +60,43 @@ SB3's ``VecNormalize`` does no harm).
 ## Rewards
 Per decision period ``[t0, t1]``::
 
-    r = -w_comfort * jerk^2 * T - w_energy * E_kWh - w_late * L / 60
+    r = -w_comfort * jerk^2 * T - w_energy * E_kWh - w_late * L / 60              (R.1)
+    L = sum_{i not served} (max(0, t1 - a_i) - max(0, t0 - a_i))  (s)             (R.2)
 
-with the jerk of the true motion over the period (m/s^3), the traction energy, and
-``L = sum_i (max(0, t1 - a_i) - max(0, t0 - a_i))`` (s): lateness accrues, as time passes,
-at every station i not yet served whose scheduled arrival ``a_i`` has passed (so a
-station's lateness totals ``arrival - a_i`` when it is served late, and keeps growing
-while it is not). At a stop at a station (the true speed reaches 0 with the true arc
-length within ``stop_tolerance_m`` of the mark):
-``+ stop_bonus * (1 - |stop error| / stop_tolerance_m) - w_early * max(0, early) / 60``
-(earliness against the schedule, s). The train then dwells (commands are ignored) until
-``max(arrival + dwell, scheduled departure)``. Passing a mark by more than
-``stop_tolerance_m`` (stopped beyond it, or 200 m past it) is an overrun: ``-overrun``,
-the station is missed and the next one becomes the target. At the episode end every
-station never reached costs ``-unserved`` (twice an overrun by default: its passengers
-are never served, and the charge stands for the lateness that would go on accruing
-beyond the episode's time limit, which the accrual above cannot see). Standing still
-therefore costs the lateness of every station plus ``unserved`` per station; driving through every station costs
-``overrun`` per station plus the energy; a driver keeping to the timetable earns the
-stop bonuses. Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10, w_late 5
-per minute, w_early 0.2 per minute, overrun 20, unserved 40, stop_tolerance_m 2.
+with the jerk of the true motion over the period (m/s^3), the traction energy, and the
+lateness L accruing, as time passes, at every station i not served (ahead of the train,
+or missed) whose scheduled arrival ``a_i`` has passed: a station served late totals
+``arrival - a_i``, one not served keeps accruing to the episode's end. Events, judged
+on the true motion:
+
+* a stop at a station (the true speed reaches 0 with the true arc length within
+  ``stop_tolerance_m`` of the mark)::
+
+      + stop_bonus * (1 - |stop error| / stop_tolerance_m) - w_early * max(0, early) / 60   (R.3)
+
+  (earliness against the schedule, s); the train then dwells (commands are ignored)
+  until ``max(arrival + dwell, scheduled departure)``;
+* an overrun (passing the mark by more than ``stop_tolerance_m``: stopped beyond it, or
+  200 m past it): ``-overrun``; the station is missed, i.e. not served: its lateness goes
+  on accruing by (R.2) and it is charged as unserved at the end; the next station
+  becomes the target;
+* at the episode's end, for every station not served (never reached, or missed)::
+
+      - unserved - w_late * L_rest / 60                                            (R.4)
+
+  with ``L_rest`` (R.2) over [t_end, T] the lateness it would accrue up to the time
+  limit T when the episode terminates before it (the last station served or missed);
+  ``unserved`` stands for the lateness beyond T, which (R.2) cannot see.
+
+So a missed station costs exactly ``overrun`` more than one never reached (the same
+lateness to T, the same unserved charge): running through a station is worse than
+standing still in front of it. Standing still costs the lateness of every station to T
+plus ``unserved`` per station; driving through every station that plus ``overrun`` per
+station and the energy; a driver keeping to the timetable earns the stop bonuses.
+Defaults: w_comfort 0.05, w_energy 0.05 per kWh, stop_bonus 10, w_late 5 per minute,
+w_early 0.2 per minute, overrun 20, unserved 40, stop_tolerance_m 2.
+``info["unserved"]`` (at the end) counts the stations not served, ``info["missed"]`` the
+overrun ones among them, ``info["late_charged_s"]`` the lateness charged so far.
 
 Optional shaping (``progress_shaping`` = c_p per km, ``braking_shaping`` = c_b per m/s,
 ``approach_shaping`` = c_a; all default 0: off). A potential-based term in the sense of
@@ -115,7 +132,9 @@ scenario's time runs out (the duration is extended to 1.25 x the scheduled journ
 
 ## Version History
 * v0: initial version; lateness charged as it accrues, unserved stations charged at the
-  end, an overrun misses the station instead of ending the episode (issue 15); four
+  end, an overrun misses the station instead of ending the episode (issue 15); a missed
+  station counts as not served ((R.2), (R.4); issue 15: an overrun no longer costs less
+  than never reaching the station); four
   final-approach entries appended to the observation and the optional progress shaping
   (issue 15, the learning demo); ``action_mode="target_speed"`` (issue 15, the learning
   demo; the default mode unchanged).
@@ -351,6 +370,7 @@ class DrivingEnv(gym.Env):
         self.energy_kwh = 0.0
         self.late_charged_s = 0.0
         self.stops: list[dict] = []
+        self.missed: list[int] = []  # stations overrun: not served
         info = {"context": self.context, "prior": self.prior, "seed": self.seed_value, "marks_m": self.marks.copy(),
                 "scheduled_arrival_s": self.sched_arr.copy(), "scheduled_departure_s": self.sched_dep.copy()}
         if self._renderer is not None:
@@ -370,6 +390,13 @@ class DrivingEnv(gym.Env):
                       d / 10.0, (v_brake - self._v_hat) / 2.0, (self._line_speed - self._v_hat) / 30.0,
                       max(self.hold_until - self.t, 0.0) / 60.0])
         return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _lateness(self, t0: float, t1: float) -> float:
+        """Lateness (s) accruing over [t0, t1] at the stations not served: those ahead and those missed."""
+        due = self.sched_arr[self.target:]
+        if self.missed:
+            due = np.concatenate([self.sched_arr[self.missed], due])
+        return float(np.sum(np.maximum(t1 - due, 0.0) - np.maximum(t0 - due, 0.0)))
 
     def _potential(self, s: float, v: float, target: int) -> float:
         """Phi of the optional shaping (module docstring) at true (s, v), next station ``target``."""
@@ -431,9 +458,8 @@ class DrivingEnv(gym.Env):
         e_kwh = energy_j / 3.6e6
         self.energy_kwh += e_kwh
         reward = -w["comfort"] * jerk * jerk * period - w["energy"] * e_kwh
-        # lateness accrues, over this period, at every station not yet served whose scheduled arrival has passed
-        due = self.sched_arr[self.target:]
-        late_inc = float(np.sum(np.maximum(self.t - due, 0.0) - np.maximum(k0 * self.dt - due, 0.0)))
+        # lateness accrues, over this period, at every station not served (ahead, or missed) whose arrival has passed
+        late_inc = self._lateness(k0 * self.dt, self.t)
         reward -= w["late"] * late_inc / 60.0
         self.late_charged_s += late_inc
         terminated = False
@@ -443,9 +469,10 @@ class DrivingEnv(gym.Env):
             mark = float(self.marks[self.target])
             s_true, v_true = float(s[-1]), float(v[-1])
             if s_true > mark + self.stop_tolerance_m and (v_true == 0.0 or s_true > mark + 200.0):
-                reward -= w["overrun"]  # the station is missed; the train goes on to the next one
+                reward -= w["overrun"]  # the station is missed (unserved); the train goes on to the next one
                 info["overrun_m"] = s_true - mark
                 self.stops.append({"station": self.target, "overrun_m": s_true - mark, "t": self.t})
+                self.missed.append(self.target)
                 self.target += 1
             elif v_true == 0.0 and abs(s_true - mark) <= self.stop_tolerance_m:
                 stop_error = s_true - mark
@@ -459,9 +486,15 @@ class DrivingEnv(gym.Env):
             if self.target == len(self.marks):
                 terminated = True
         if terminated or self._k >= self.n_steps:
-            unserved = len(self.marks) - self.target  # stations never reached
-            reward -= w["unserved"] * unserved
+            # stations never reached and stations missed: the unserved charge, and (ended before the time limit)
+            # the lateness they would accrue up to it
+            unserved = len(self.marks) - self.target + len(self.missed)
+            rest = self._lateness(self.t, self.n_steps * self.dt) if self._k < self.n_steps else 0.0
+            reward -= w["late"] * rest / 60.0 + w["unserved"] * unserved
+            self.late_charged_s += rest
+            info["late_charged_s"] = self.late_charged_s
             info["unserved"] = unserved
+            info["missed"] = len(self.missed)
         info["task_reward"] = float(reward)
         if self._shaped:  # potential-based, on the true motion
             reward += self._potential(float(s[-1]), float(v[-1]), self.target) - phi0

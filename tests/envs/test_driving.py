@@ -129,22 +129,48 @@ def test_standing_still_costs_the_accrued_lateness_and_the_unserved_stations():
     assert total < -w["unserved"] - 2.0  # the lateness (27 s at 5 per minute) is a real part of it
 
 
-def test_reward_orders_standing_naive_and_timetable_drivers():
-    """Held-out seed (no policy was tuned on it): standing still < constant command < timetable driver."""
-    stand = _episode(STAND, 100, TWO_STOPS)
-    naive = _episode(CONSTANT, 100, TWO_STOPS)
+def test_a_missed_station_costs_the_overrun_more_than_one_never_reached():
+    """(R.2)-(R.4) with comfort and energy off: the constant command drives through the
+    station (an overrun, the episode ends there); the missed station then accrues the same
+    lateness to the time limit and the same unserved charge as standing still in front of
+    it, so the two returns differ by the overrun charge exactly (sums of per-period
+    increments of size ~1: rel 1e-9)."""
+    quiet = {"weights": {"comfort": 0.0, "energy": 0.0}}
+    stand = _episode(STAND, 100, TWO_STOPS, **quiet)
+    naive = _episode(CONSTANT, 100, TWO_STOPS, **quiet)
+    w = naive[2].weights
+    assert "overrun_m" in naive[1] and naive[1]["unserved"] == 1 and naive[1]["missed"] == 1
+    assert naive[2].steps_done < stand[2].steps_done  # it ended at the overrun, before the time limit
+    assert naive[1]["late_charged_s"] == pytest.approx(stand[1]["late_charged_s"], rel=1e-12)
+    assert naive[0] == pytest.approx(stand[0] - w["overrun"], rel=1e-9)
+
+
+CONSTANT_DRIVERS = {"u = 0.3": ({}, CONSTANT), "u = 1": ({}, lambda obs: np.ones(1, np.float32)),
+                    "line speed demand": ({"action_mode": "target_speed"}, lambda obs: np.ones(1, np.float32))}
+
+
+def test_reward_orders_naive_and_standing_below_the_timetable_driver():
+    """Held-out seed (no policy was tuned on it): every constant-command driver (it runs
+    through the station) < standing still < the timetable driver. The margins are the
+    charges: an overrun costs 20 more than standing still, which costs the 40 of the
+    unserved station plus its lateness, while the timetable driver earns up to the bonus 10."""
     timed = _episode(_timetable_driver, 100, TWO_STOPS)
-    assert "overrun_m" in naive[1] and naive[1]["unserved"] == 0  # drove through the station: missed, not unserved
+    stand = _episode(STAND, 100, TWO_STOPS)
     (stop,) = timed[1]["stops"]
-    assert abs(stop["stop_error_m"]) <= 2.0 and stop["late_s"] <= 0.0
-    assert stand[0] + 10.0 < naive[0] < timed[0] - 20.0
+    assert abs(stop["stop_error_m"]) <= 2.0 and stop["late_s"] <= 0.0 and timed[1]["unserved"] == 0
+    assert stand[0] + 40.0 < timed[0]
+    for name, (kwargs, policy) in CONSTANT_DRIVERS.items():
+        total, info, _ = _episode(policy, 100, TWO_STOPS, **kwargs)
+        assert "overrun_m" in info and info["unserved"] == 1, name
+        assert total + 15.0 < stand[0], name  # 20 more minus at most the energy difference
+        assert total + 60.0 < timed[0], name
 
 
 @pytest.mark.slow
 def test_reward_order_three_stations_three_held_out_seeds():
     for seed in (100, 101, 102):
         stand, naive, timed = (_episode(p, seed, THREE_STOPS)[0] for p in (STAND, CONSTANT, _timetable_driver))
-        assert stand + 10.0 < naive < timed - 30.0
+        assert naive + 15.0 < stand < timed - 80.0
 
 
 # ---------------------------------------------------------------- the final-approach observation and the optional shaping
