@@ -128,7 +128,8 @@ jerk-limited minimum-time timetable (the scenario's ``motion`` section) stretche
 ## Episode end
 Terminated when the last station is served or missed (overrun); truncated when the
 scenario's time runs out (the duration is extended to 1.25 x the scheduled journey).
-``info["episode_score"]`` at the end: the estimator's navigation score over the episode.
+``info["episode_score"]`` at the end: the estimator's navigation score over the episode
+(unless ``episode_score=False``).
 
 ## Version History
 * v0: initial version; lateness charged as it accrues, unserved stations charged at the
@@ -238,6 +239,10 @@ class _MapTable:
         f = x - i
         return (1.0 - f) * self._sin_pitch[i] + f * self._sin_pitch[i + 1]
 
+    def grade_table(self) -> tuple[list[float], float, float]:
+        """(sin(pitch) values, step, end) of :meth:`sin_grade`, for the plant's inline path."""
+        return self._sin_pitch, self.step, float(self.s[-1])
+
     def project(self, lat: float, lon: float, s_guess: float, window_m: float = 300.0) -> float:
         """Arc length of the track point nearest to (lat, lon), searched near s_guess."""
         if not (math.isfinite(lat) and math.isfinite(lon)):
@@ -270,6 +275,11 @@ class DrivingEnv(gym.Env):
         (default) or the speed demand of (D.1).
     speed_gain : float
         k_v of (D.1), per m/s (target_speed mode only; default 1.0).
+    episode_score : bool
+        Record the episode and put the estimator's navigation score in the last info
+        (default True). False (training, where only the reward counts) skips the
+        recording and the scoring; rewards, observations and the other infos are the
+        same (bit for bit). Rendering records the episode either way.
     progress_shaping, braking_shaping, approach_shaping : float
         c_p (per km of progress toward the last mark), c_b (per m/s above the braking
         curve) and c_a (for the last 50 m to the next mark) of the optional
@@ -287,7 +297,7 @@ class DrivingEnv(gym.Env):
                  stop_tolerance_m: float = 2.0, weights: dict | None = None, train: TrainParameters | None = None,
                  truth_in_info: bool = False, progress_shaping: float = 0.0,
                  braking_shaping: float = 0.0, approach_shaping: float = 0.0, action_mode: str = "command",
-                 speed_gain: float = 1.0,
+                 speed_gain: float = 1.0, episode_score: bool = True,
                  render_mode: str | None = None, **overrides: Any) -> None:
         from navsim.episode import make_context
         from navsim.simulator import Simulator
@@ -320,7 +330,7 @@ class DrivingEnv(gym.Env):
         self.context = make_context(self.sim)
         self.prn = np.asarray(self.sim.constellation.prn)
         self.map = _MapTable(self.sim.track)
-        self.plant = TrainPlant(self.map.sin_grade, train or TrainParameters())
+        self.plant = TrainPlant(self.map.sin_grade, train or TrainParameters(), grade_table=self.map.grade_table())
         self.estimator_name, self.estimator = resolve_estimator(estimator, estimator_options)
         self.stop_tolerance_m = float(stop_tolerance_m)
         self.truth_in_info = bool(truth_in_info)
@@ -339,6 +349,8 @@ class DrivingEnv(gym.Env):
         self._b_ref = 0.5 * self.plant.p.max_brake_decel_mps2  # service brake of the braking-curve entry
         self._line_speed = float(base.motion.cruise_speed_mps)
         self.render_mode = render_mode
+        self.episode_score = bool(episode_score)
+        self._record = self.episode_score or render_mode is not None
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * self.dt)}
         self._renderer = None
         self.n_steps = self.scenario.timing.steps
@@ -358,7 +370,7 @@ class DrivingEnv(gym.Env):
         self.prior = start.prior
         self.estimator.reset(self.context, self.prior)
         self.plant.reset(float(self.marks[0]), 0.0)
-        self.tape = EpisodeTape(self.n_steps)
+        self.tape = EpisodeTape(self.n_steps if self._record else 0)
         self.target = 1  # the next station to serve
         self.hold_until = float(self.sched_dep[0])  # dwell at the first station
         self.t = 0.0
@@ -415,8 +427,9 @@ class DrivingEnv(gym.Env):
 
         chunk = self.sim.advance(n)
         out = step_batch(self.estimator, measurement_batch(chunk, self.prn, self.dt))
-        self.tape.add_chunk(chunk)
-        self.tape.add_estimates(chunk.step0, out)
+        if self._record:
+            self.tape.add_chunk(chunk)
+            self.tape.add_estimates(chunk.step0, out)
         sol = out.solution[-1]
         self._s_hat = self.map.project(float(sol[0]), float(sol[1]), self._s_hat)
         j = min(int(round(self._s_hat / self.map.step)), len(self.map.s) - 1)
@@ -501,7 +514,11 @@ class DrivingEnv(gym.Env):
         if self.truth_in_info:
             info["truth"] = {"s": float(s[-1]), "speed": float(v[-1]), "accel": float(a[-1])}
         truncated = not terminated and self._k >= self.n_steps
-        if terminated or truncated:
+        if (terminated or truncated) and not self.episode_score:
+            info["stops"] = list(self.stops)
+            self.steps_done = self._k
+            self._k = self.n_steps  # the episode is over
+        elif terminated or truncated:
             from navsim.metrics import score_episode
 
             steps = self._k

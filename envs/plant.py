@@ -92,12 +92,26 @@ class TrainPlant:
     sin_grade : callable
         ``sin(theta)`` of the track at an arc length s (float in, float out).
     params : TrainParameters
+    grade_table : (values, step_m, end_m), optional
+        ``sin(theta)`` tabulated at ``s = 0, step_m, 2 step_m, ..., end_m`` with
+        ``sin_grade`` its linear interpolation on ``min(max(s, 0), end_m) / step_m``
+        (the driving task's map, :class:`navsim.envs.driving._MapTable`). Given,
+        :meth:`advance` interpolates the table inline and reuses the end-of-step force
+        evaluation as the next step's first RK4 stage: the same operations on the same
+        numbers as the generic path (bit for bit), about 2.5x faster.
     """
 
-    def __init__(self, sin_grade: Callable[[float], float], params: TrainParameters = TrainParameters()):
+    def __init__(self, sin_grade: Callable[[float], float], params: TrainParameters = TrainParameters(),
+                 grade_table: tuple[list[float], float, float] | None = None):
         self.sin_grade = sin_grade
         self.p = params
         self.s, self.v, self.a = 0.0, 0.0, 0.0
+        self._table: tuple[list[float], float, float, int] | None = None
+        if grade_table is not None:
+            values, step, end = list(map(float, grade_table[0])), float(grade_table[1]), float(grade_table[2])
+            if len(values) < 2 or not (step > 0.0 and math.isfinite(step) and end > 0.0 and math.isfinite(end)):
+                raise ConfigError("grade_table", "at least 2 values, a positive finite step and end, m", (step, end))
+            self._table = (values, step, end, len(values) - 1)
 
     def reset(self, s0: float, v0: float = 0.0) -> None:
         self.s, self.v = float(s0), float(v0)
@@ -136,6 +150,8 @@ class TrainPlant:
         s, v, a : (n,) the state at the end of each step (m, m/s, m/s^2).
         energy_j : traction energy spent over the n steps, J (trapezoid rule in time).
         """
+        if self._table is not None:
+            return self._advance_table(u, dt, n)
         u = float(np.clip(u, -1.0, 1.0))
         out_s, out_v, out_a = np.empty(n), np.empty(n), np.empty(n)
         energy = 0.0
@@ -165,6 +181,65 @@ class TrainPlant:
             energy += 0.5 * dt * (p1 + p4)
             s, v = s_new, v_new
             a_now = f(s, v, u, at_rest=v <= 0.0)[0]
+            out_s[k], out_v[k], out_a[k] = s, v, a_now
+        self.s, self.v, self.a = s, v, a_now
+        return out_s, out_v, out_a, energy
+
+    def _advance_table(self, u: float, dt: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """:meth:`advance` with the grade table inline (the same operations in the same order)."""
+        assert self._table is not None
+        tab, step, s_max, last = self._table
+        u = float(np.clip(u, -1.0, 1.0))
+        p = self.p
+        m_eff = p.effective_mass_kg
+        mg = p.mass_kg * G0
+        A, B, C = p.davis_a_n, p.davis_b_n_per_mps, p.davis_c_n_per_mps2
+        f_max, p_max = p.max_traction_n, p.max_power_w
+        traction = u > 0.0
+        f_b = 0.0 if traction else -u * m_eff * p.max_brake_decel_mps2
+
+        def sin_grade(s: float) -> float:  # _MapTable.sin_grade
+            x = min(max(s, 0.0), s_max) / step
+            i = min(int(x), last - 1)
+            f = x - i
+            return (1.0 - f) * tab[i] + f * tab[i + 1]
+
+        def moving(s: float, v: float) -> tuple[float, float]:  # acceleration(s, v, u)
+            f_t = u * min(f_max, p_max / max(v, 1e-3)) if traction else 0.0
+            return (f_t - f_b - (A + B * v + C * v * v) - mg * sin_grade(s)) / m_eff, f_t * v
+
+        def at_rest(s: float) -> tuple[float, float]:  # acceleration(s, 0, u, at_rest=True)
+            f_t = u * min(f_max, p_max / 1e-3) if traction else 0.0
+            net = f_t - A - mg * sin_grade(s)
+            return (net / m_eff if net > 0.0 else 0.0), 0.0
+
+        out_s, out_v, out_a = np.empty(n), np.empty(n), np.empty(n)
+        energy = 0.0
+        s, v = self.s, self.v
+        a_cur, p_cur = at_rest(s) if v <= 0.0 else moving(s, v)  # the first step's first stage
+        a_now = a_cur
+        for k in range(n):
+            a1, p1 = a_cur, p_cur
+            if v <= 0.0 and a1 == 0.0:
+                out_s[k], out_v[k], out_a[k] = s, 0.0, 0.0
+                a_now = 0.0
+                continue
+            v2 = v + 0.5 * dt * a1
+            a2 = moving(s + 0.5 * dt * v, v2)[0]
+            v3 = v + 0.5 * dt * a2
+            a3 = moving(s + 0.5 * dt * v2, v3)[0]
+            v4 = v + dt * a3
+            a4, p4 = moving(s + dt * v3, v4)
+            v_new = v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            s_new = s + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+            if v_new <= 0.0:
+                s_new = s + 0.5 * v * v / -a1 if (v > 0.0 and a1 < 0.0) else s
+                v_new = 0.0
+                p4 = 0.0
+            energy += 0.5 * dt * (p1 + p4)
+            s, v = s_new, v_new
+            a_cur, p_cur = at_rest(s) if v <= 0.0 else moving(s, v)  # a(t_k+1), and the next step's first stage
+            a_now = a_cur
             out_s[k], out_v[k], out_a[k] = s, v, a_now
         self.s, self.v, self.a = s, v, a_now
         return out_s, out_v, out_a, energy

@@ -277,3 +277,57 @@ def test_ppo_demo_pipeline_runs():
     obs, _ = env.reset(seed=7)
     assert env.action_space.contains(np.asarray(policy(obs), dtype=np.float32).reshape(1))
     assert res["stand"][0][0] == _episode(STAND, 7, SHORT)[0]
+
+
+# ---------------------------------------------------------------- the fast paths: the same numbers
+def test_plant_table_path_equals_the_generic_path_bit_for_bit():
+    """TrainPlant with the grade table inline (and the end-of-step force reused as the next
+    first RK4 stage) against the generic path through ``sin_grade``: the same operations on
+    the same numbers, over traction, power limit, braking to rest, standing and restart."""
+    env = gym.make("navsim/TrainDriving-v0", **SHORT).unwrapped
+    fast = env.plant
+    generic = TrainPlant(env.map.sin_grade, fast.p)
+    assert fast._table is not None and generic._table is None
+    for plant in (fast, generic):
+        plant.reset(380.0, 0.0)
+    for u in [1.0] * 30 + [0.4, 0.0, -0.2] * 5 + [-1.0] * 25 + [0.05, 0.3, 1.0] * 4:
+        a, b = fast.advance(u, 0.02, 50), generic.advance(u, 0.02, 50)
+        for x, y in zip(a[:3], b[:3]):
+            assert np.array_equal(x, y)
+        assert a[3] == b[3] and (fast.s, fast.v, fast.a) == (generic.s, generic.v, generic.a)
+    assert generic.s > 900.0  # the sequence crossed the station and the grade table's cells
+
+
+def _trace(env, policy, seed):
+    obs, _ = env.reset(seed=seed)
+    out = [obs.tobytes()]
+    while True:
+        obs, r, term, trunc, info = env.step(policy(obs))
+        out.append((obs.tobytes(), r, info["task_reward"], info["truth"], info["energy_kwh"], info["late_charged_s"]))
+        if term or trunc:
+            out.append((info["stops"], info["unserved"], info["missed"]))
+            return out
+
+
+def test_fast_env_equals_the_reference_env_for_a_fixed_action_sequence():
+    """The training configuration (plant table path, ``episode_score=False``) against the
+    reference (generic plant path, the episode recorded and scored): observations, rewards
+    and infos equal bit for bit for the same actions (a fixed random sequence: an overrun;
+    the braking-curve driver, whose actions then agree as well: a stop), in both action
+    modes, with the shaping on."""
+    fixed = np.clip(np.random.default_rng(11).normal(0.4, 0.7, 300), -1, 1).astype(np.float32)
+    events = set()
+    for mode in ("command", "target_speed"):
+        ref = gym.make("navsim/TrainDriving-v0", truth_in_info=True, action_mode=mode,
+                       approach_shaping=5.0, **SHORT).unwrapped
+        ref.plant._table = None  # the generic path
+        fast = gym.make("navsim/TrainDriving-v0", truth_in_info=True, action_mode=mode, approach_shaping=5.0,
+                        episode_score=False, **SHORT).unwrapped
+        for policy in (_driver, lambda obs, it=iter(fixed): next(it).reshape(1)):
+            if mode == "target_speed" and policy is _driver:
+                continue  # the driver speaks the command mode
+            a = _trace(ref, policy, 21)
+            b = _trace(fast, policy if policy is _driver else (lambda obs, it=iter(fixed): next(it).reshape(1)), 21)
+            assert a == b
+            events |= {"stop_error_m" in st and "stop" or "overrun" for st in a[-1][0]}
+    assert events == {"stop", "overrun"}
