@@ -71,7 +71,7 @@ if __name__ == "__main__":
     mode = {"action_mode": args.action_mode}
     policy, stats = train("navsim/TrainDriving-v0", {**LINE, **mode}, steps, args.envs, n_steps=args.n_steps,
                           train_kwargs={"progress_shaping": args.shaping, "braking_shaping": args.braking_shaping,
-                                        "approach_shaping": args.approach_shaping},
+                                        "approach_shaping": args.approach_shaping, "episode_score": False},
                           ppo_kwargs={"learning_rate": args.lr, "gamma": args.gamma, "ent_coef": args.ent_coef},
                           policy_kwargs={"log_std_init": args.log_std_init})
     baselines = {"standing still (u = -1)": lambda obs: np.array([-1.0], np.float32),
