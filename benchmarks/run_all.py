@@ -33,8 +33,7 @@ PAGE = HERE / "RESULTS.md"
 DEFAULT_ARGS: dict[str, list[str]] = {"bench_ins": ["--kernels", "100000"],
                                        "bench_campaign": ["--seeds", "8", "--duration", "100"],
                                        "demo_ppo_adaptive": ["--steps", "6000", "--seeds", "10"],
-                                       "demo_ppo_driving": ["--steps", "10240", "--seeds", "10", "--log-std-init", "-0.5",
-                                                            "--lr", "1e-3"]}
+                                       "demo_ppo_driving": ["--steps", "122880", "--seeds", "10"]}
 
 
 def _scripts() -> list[str]:
