@@ -38,12 +38,17 @@ LINE = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 5.0}, {"s_m": 900.0, "
         "timing": {"tick_s": 0.02, "imu_period_s": 0.02, "nav_period_s": 0.02}}
 
 
+def _replay(seed: int):
+    """A fixed random command sequence (mean 0.4: it runs through the station), whatever is observed."""
+    fixed = iter(np.clip(np.random.default_rng(seed).normal(0.4, 0.7, 10_000), -1, 1).astype(np.float32))
+    return lambda obs: next(fixed).reshape(1)
+
+
 def _episodes(env, n: int, seed0: int) -> tuple[list, int]:
     """n episodes alternating the driver and a fixed random sequence; (traces, decisions)."""
     traces, steps = [], 0
     for j in range(n):
-        fixed = iter(np.clip(np.random.default_rng(seed0 + j).normal(0.4, 0.7, 10_000), -1, 1).astype(np.float32))
-        policy = braking_curve_driver if j % 2 == 0 else (lambda obs: next(fixed).reshape(1))
+        policy = braking_curve_driver if j % 2 == 0 else _replay(seed0 + j)
         obs, _ = env.reset(seed=seed0 + j)
         trace = [obs.tobytes()]
         while True:
@@ -125,7 +130,8 @@ def main() -> None:
     for name, spent in timer.spent.items():
         rest -= spent
         print(f"| {name} | {1e3 * spent / steps:.2f} | {spent / total:.0%} |")
-    print(f"| the rest of the env step (observation, reward, projection) | {1e3 * rest / steps:.2f} | {rest / total:.0%} |")
+    print(f"| the rest of the env step (observation, reward, projection) | {1e3 * rest / steps:.2f} "
+          f"| {rest / total:.0%} |")
 
 
 if __name__ == "__main__":
