@@ -29,10 +29,11 @@ import time
 
 import gymnasium as gym
 import navsim.envs  # noqa: F401  (registers the ids)
-import navsim.episode
 import numpy as np
 from navsim.envs import driving
 from navsim.envs.driving import braking_curve_driver
+
+import navsim.episode
 
 LINE = {"motion": {"stations": [{"s_m": 400.0, "dwell_s": 5.0}, {"s_m": 900.0, "dwell_s": 10.0}]},
         "timing": {"tick_s": 0.02, "imu_period_s": 0.02, "nav_period_s": 0.02}}

@@ -95,8 +95,8 @@ if __name__ == "__main__":
                          seeds),
                **compare("navsim/TrainDriving-v0", LINE, baselines, seeds)}
     report("navsim/TrainDriving-v0", LINE, results, stats, seeds,
-           ["standing still (u = -1)", "constant command u = 0.3", "full traction u = 1", "constant speed demand a = 1 (line speed)",
-            "braking-curve driver (reference)"], extra=note,
+           ["standing still (u = -1)", "constant command u = 0.3", "full traction u = 1",
+            "constant speed demand a = 1 (line speed)", "braking-curve driver (reference)"], extra=note,
            figure=None if args.quick or args.figure == "none" else args.figure,
            train_note=f"; PPO in action_mode={args.action_mode!r}, training with progress_shaping={args.shaping:g}, "
                       f"braking_shaping={args.braking_shaping:g}, approach_shaping={args.approach_shaping:g}, "
