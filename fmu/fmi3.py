@@ -68,7 +68,7 @@ class _Slave(SlaveValues, Fmi3Slave):
             self.log(f"doStep failed: {type(exc).__name__}: {exc}", Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)
         self.time = current_time + step_size
-        self.rt.store.values[0] = self.time
+        self.rt.store.set_time(self.time)
         return Fmi3StepResult()
 
     def get_float64(self, vrs):

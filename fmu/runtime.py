@@ -94,10 +94,12 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from navsim.errors import ConfigError, NavsimError
+from navsim.signals import MEASUREMENT_SIGNALS, STEP_SIGNALS, signal
 from navsim.types import GnssObservation, Measurement
 
 from .variables import Dimensions, Var, estimator_variables, plant_variables
@@ -134,160 +136,165 @@ def _version() -> str:
 
 
 # =========================================================================== store
-class ValueStore:
-    """The FMU's variable values by value reference.
+_DTYPES = {"real": np.float64, "int": np.int64, "bool": np.bool_}
+_CACHE_MAX = 64  # distinct value-reference lists kept resolved (a host asks the same few each step)
 
-    FMI 2 (``fmi=2``): every element of an array :class:`Var` is one scalar variable, so a
-    variable of size n occupies n consecutive value references. FMI 3 (``fmi=3``): value
-    reference 0 is the independent variable ``time``; each :class:`Var` has one value
-    reference and arrays are stored as lists.
+
+class ValueStore:
+    """The FMU's variable values, array-backed: one preallocated NumPy array per FMI type.
+
+    Every variable's elements occupy one slice of the array of its type (``real``:
+    float64, ``int``: int64, ``bool``: bool; strings in a list), in table order. FMI 2
+    (``fmi=2``): every element of an array :class:`Var` is one scalar variable, so a
+    variable of size n has n consecutive value references. FMI 3 (``fmi=3``): value
+    reference 0 is the independent variable ``time`` (element 0 of the real array); each
+    :class:`Var` has one value reference and arrays are read and set whole.
+
+    Host side: :meth:`get` / :meth:`set` resolve a list of value references once (type and
+    causality checked, then a slice or an index array into the typed array, cached by the
+    list) and read or assign it with one NumPy operation. Runtime side: :meth:`slot` gives
+    a variable's ``(array, slice)``, so the runtime writes a whole signal, or several
+    consecutive ones, with one slice assignment of a preallocated float array
+    (:meth:`segments`); :meth:`read` / :meth:`write` by name are for the cold paths.
     """
 
-    def __init__(self, table: list[Var], fmi: int):
+    def __init__(self, table: list[Var], fmi: int) -> None:
         if fmi not in (2, 3):
             raise ConfigError("fmi", "2 or 3", fmi)
         self.fmi = fmi
         self.table = table
         self.by_name = {v.name: v for v in table}
-        self.first_vr: dict[str, int] = {}
-        self.values: list = []
-        self.types: list[str] = []
-        self.vars: list[Var | None] = []
-        if fmi == 3:
-            self.values.append(0.0)
-            self.types.append("real")
-            self.vars.append(None)
+        count = {"real": 1 if fmi == 3 else 0, "int": 0, "bool": 0, "string": 0}
+        self._elements: dict[str, tuple[str, int, int]] = {}  # name -> (type, first element, size)
         for var in table:
-            self.first_vr[var.name] = len(self.values)
-            default = _zero(var.type) if var.start is None else var.start
+            self._elements[var.name] = (var.type, count[var.type], var.size)
+            count[var.type] += var.size
+        self.arrays: dict[str, np.ndarray] = {t: np.zeros(count[t], dtype=d) for t, d in _DTYPES.items()}
+        self.strings: list[str] = [""] * count["string"]
+        self.real, self.int, self.bool = self.arrays["real"], self.arrays["int"], self.arrays["bool"]
+        # value reference -> (type, first element, size, Var or None for FMI 3's time)
+        refs: list[tuple[str, int, int, Var | None]] = [("real", 0, 1, None)] if fmi == 3 else []
+        self.first_vr: dict[str, int] = {}
+        for var in table:
+            kind, first, n = self._elements[var.name]
+            self.first_vr[var.name] = len(refs)
             if fmi == 2:
-                for _ in range(var.size):
-                    self.values.append(default)
-                    self.types.append(var.type)
-                    self.vars.append(var)
+                refs.extend((kind, first + j, 1, var) for j in range(n))
             else:
-                self.values.append([default] * var.size if var.shape else default)
-                self.types.append(var.type)
-                self.vars.append(var)
-        self._n = len(self.values)
-        # name -> (first value reference, scalar count, shape or None): the runtime's writes
-        # and reads of whole variables, looked up once per call
-        self._slots = {v.name: (self.first_vr[v.name], v.size, v.shape or None) for v in table}
+                refs.append((kind, first, n, var))
+            default = _zero(var.type) if var.start is None else var.start
+            if kind == "string":
+                self.strings[first:first + n] = [str(default)] * n
+            else:
+                self.arrays[kind][first:first + n] = default
+        self._refs = refs
+        self._n = len(refs)
+        self._resolved: dict[tuple, Any] = {}
 
     def __len__(self) -> int:
         return self._n
 
     # -- host side (FMI get/set) ------------------------------------------------------
-    def get(self, vrs, type_: str) -> list:
-        out = []
-        values, types, n = self.values, self.types, self._n
-        for vr in vrs:
-            if not 0 <= vr < n or types[vr] != type_:
+    def _resolve(self, vrs: Any, type_: str, allowed: tuple[str, ...] | None) -> Any:
+        """Elements of the value references ``vrs`` of type ``type_`` (a slice when they
+        are consecutive, else an index array; FmuError on a wrong reference, type or, for
+        a set, causality not in ``allowed``), cached by ``(vrs, type_, allowed)``."""
+        key = (tuple(vrs), type_, allowed)
+        hit = self._resolved.get(key)
+        if hit is not None:
+            return hit
+        elements: list[int] = []
+        refs, n = self._refs, self._n
+        for vr in key[0]:
+            if not 0 <= vr < n or refs[vr][0] != type_:
                 raise FmuError(f"value reference {vr}: expected a {type_} variable of this FMU")
-            value = values[vr]
-            if type(value) is list:
-                out.extend(value)
-            else:
-                out.append(value)
-        return out
-
-    def set(self, vrs, new_values, type_: str, allowed: tuple[str, ...]) -> None:
-        values, types, n = self.values, self.types, self._n
-        k = 0
-        for vr in vrs:
-            if not 0 <= vr < n or types[vr] != type_:
-                raise FmuError(f"value reference {vr}: expected a {type_} variable of this FMU")
-            var = self.vars[vr]
-            if var is None or var.causality not in allowed:
+            _, first, size, var = refs[vr]
+            if allowed is not None and (var is None or var.causality not in allowed):
                 name = "time" if var is None else var.name
                 raise FmuError(f"{name} (value reference {vr}) cannot be set now (causality "
                                f"{'independent' if var is None else var.causality})")
-            if self.fmi == 3 and var.shape:
-                chunk = list(new_values[k:k + var.size])
-                if len(chunk) != var.size:
-                    raise FmuError(f"{var.name}: expected {var.size} values, got {len(chunk)}")
-                values[vr] = chunk
-                k += var.size
-            else:
-                values[vr] = new_values[k]
-                k += 1
+            elements.extend(range(first, first + size))
+        if elements and elements == list(range(elements[0], elements[0] + len(elements))):
+            where: Any = slice(elements[0], elements[0] + len(elements))
+        else:
+            where = np.array(elements, dtype=np.intp)
+        if len(self._resolved) >= _CACHE_MAX:
+            self._resolved.clear()
+        self._resolved[key] = (where, len(elements))
+        return where, len(elements)
+
+    def get(self, vrs: Any, type_: str) -> list:
+        """The values of the value references ``vrs`` (flat, in order) as Python scalars."""
+        where, n = self._resolve(vrs, type_, None)
+        if type_ == "string":
+            strings = self.strings
+            return strings[where] if type(where) is slice else [strings[i] for i in where]
+        return self.arrays[type_][where].tolist()
+
+    def set(self, vrs: Any, new_values: Any, type_: str, allowed: tuple[str, ...]) -> None:
+        """Set the value references ``vrs`` from ``new_values`` (flat, in order; FmuError on
+        a wrong reference or type, a variable that cannot be set now, too few values)."""
+        where, n = self._resolve(vrs, type_, allowed)
+        values = list(new_values)
+        if len(values) < n:
+            raise FmuError(f"value references {list(vrs)}: expected {n} values, got {len(values)}")
+        if type_ == "string":
+            for i, value in zip(range(where.start, where.stop) if type(where) is slice else where.tolist(), values):
+                self.strings[i] = value
+            return
+        self.arrays[type_][where] = values[:n]
+
+    def set_time(self, t: float) -> None:
+        """FMI 3's independent variable (value reference 0)."""
+        self.real[0] = t
 
     # -- runtime side ------------------------------------------------------------------
-    def write(self, name: str, value) -> None:
-        """Set an output (scalar, array or nested list) from the runtime."""
-        vr, n, shape = self._slots[name]
-        if shape:
-            flat = (value.ravel() if type(value) is np.ndarray else np.asarray(value).ravel()).tolist()
-            if self.fmi == 2:
-                self.values[vr:vr + n] = flat
+    def slot(self, name: str) -> tuple[np.ndarray, slice]:
+        """``(array, slice)`` of a (non-string) variable's elements in its typed array."""
+        kind, first, n = self._elements[name]
+        return self.arrays[kind], slice(first, first + n)
+
+    def segments(self, names: list[str]) -> list[tuple[np.ndarray, slice, slice]]:
+        """The variables ``names`` (in this order: the columns of a row) as few
+        ``(array, store slice, row slice)`` assignments: consecutive elements of one typed
+        array are merged, so writing a row is one slice assignment per run of them."""
+        out: list[tuple[np.ndarray, slice, slice]] = []
+        col = 0
+        for name in names:
+            kind, first, n = self._elements[name]
+            arr = self.arrays[kind]
+            if out and out[-1][0] is arr and out[-1][1].stop == first:
+                prev = out[-1]
+                out[-1] = (arr, slice(prev[1].start, first + n), slice(prev[2].start, col + n))
             else:
-                self.values[vr] = flat
+                out.append((arr, slice(first, first + n), slice(col, col + n)))
+            col += n
+        return out
+
+    def write(self, name: str, value: Any) -> None:
+        """Set a variable (scalar, array or nested list) from the runtime."""
+        kind, first, n = self._elements[name]
+        if kind == "string":
+            self.strings[first] = str(value)
+        elif n == 1 and not self.by_name[name].shape:
+            self.arrays[kind][first] = value
         else:
-            self.values[vr] = value.item() if hasattr(value, "item") else value
+            self.arrays[kind][first:first + n] = np.ravel(value)
 
-    def block_writer(self, names: list[str]):
-        """A function ``write(flat)`` that sets the variables ``names`` from one flat list
-        of their scalar values in table order: one slice assignment when they are
-        consecutive FMI 2 scalars (the plant's IMU and truth outputs), per variable
-        otherwise."""
-        slots = [self._slots[n] for n in names]
-        values = self.values
-        if self.fmi == 2 and all(b[0] == a[0] + a[1] for a, b in zip(slots, slots[1:])):
-            vr0, total = slots[0][0], sum(n for _, n, _ in slots)
-
-            def write(flat: list) -> None:
-                values[vr0:vr0 + total] = flat
-            return write
-
-        def write_each(flat: list) -> None:
-            k = 0
-            for vr, n, shape in slots:
-                if shape:
-                    if self.fmi == 2:
-                        values[vr:vr + n] = flat[k:k + n]
-                    else:
-                        values[vr] = flat[k:k + n]
-                else:
-                    values[vr] = flat[k]
-                k += n
-        return write_each
-
-    def block_reader(self, names: list[str]):
-        """A function ``read()`` giving the scalar values of the real variables ``names``
-        as one flat float array, in table order (one slice when they are consecutive FMI 2
-        scalars)."""
-        slots = [self._slots[n] for n in names]
-        values = self.values
-        if self.fmi == 2 and all(b[0] == a[0] + a[1] for a, b in zip(slots, slots[1:])):
-            vr0, total = slots[0][0], sum(n for _, n, _ in slots)
-            return lambda: np.array(values[vr0:vr0 + total], dtype=float)
-
-        def read_each() -> np.ndarray:
-            flat: list = []
-            for vr, n, shape in slots:
-                if self.fmi == 2:
-                    flat.extend(values[vr:vr + n])
-                elif shape:
-                    flat.extend(values[vr])
-                else:
-                    flat.append(values[vr])
-            return np.array(flat, dtype=float)
-        return read_each
-
-    def read(self, name: str):
-        """The current value of a variable: a Python scalar or a numpy array of its shape."""
-        vr, n, shape = self._slots[name]
+    def read(self, name: str) -> Any:
+        """The current value of a variable: a Python scalar or a NumPy array (a copy) of its shape."""
+        kind, first, n = self._elements[name]
+        if kind == "string":
+            return self.strings[first]
+        shape = self.by_name[name].shape
         if not shape:
-            return self.values[vr]
-        flat = self.values[vr:vr + n] if self.fmi == 2 else self.values[vr]
-        return np.asarray(flat, dtype=_NP[self.types[vr]]).reshape(shape)
+            return self.arrays[kind][first].item()
+        return self.arrays[kind][first:first + n].reshape(shape).copy()
 
 
-_NP = {"real": float, "int": np.int64, "bool": bool, "string": object}
-_NAN9, _NAN81 = [math.nan] * 9, [math.nan] * 81
 
 
-def _zero(type_: str):
+def _zero(type_: str) -> Any:
     return {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
 
 
@@ -446,11 +453,19 @@ class _RuntimeBase:
 
 
 class PlantRuntime(_RuntimeBase):
-    """The plant FMU: the core :class:`~navsim.simulator.Simulator` behind FMI calls."""
+    """The plant FMU: the core :class:`~navsim.simulator.Simulator` behind FMI calls.
+
+    Hot path (a communication step of one navigation step): when a new chunk of the
+    simulator arrives, its per-step outputs are laid out once as rows, in the value
+    layout of the store (``time.t_s``, the IMU block, every per-step signal of
+    :data:`navsim.signals.STEP_SIGNALS`, the truth components; the step counters; the
+    GNSS epochs' values), so a doStep writes a few preallocated rows with one slice
+    assignment per run of consecutive variables (:meth:`ValueStore.segments`).
+    """
 
     kind = "plant"
 
-    def __init__(self, resources: str, fmi: int, log=None):
+    def __init__(self, resources: str, fmi: int, log: Any = None) -> None:
         from navsim.simulator import Simulator
 
         super().__init__(resources, fmi, log)
@@ -458,12 +473,28 @@ class PlantRuntime(_RuntimeBase):
         self.dims = Dimensions.of(self.sim)
         self.store = ValueStore(plant_variables(self.dims, plant_defaults(self.base_scenario)), fmi)
         orders = range(1, self.dims.orders + 1)
-        self._write_imu = self.store.block_writer([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
-                                                  + ["imu.dtheta_sub", "imu.dv_sub"])
-        self._write_truth_block = self.store.block_writer(
-            ["truth.s_m", "truth.speed_mps", "truth.accel_mps2", "truth.lat_rad", "truth.lon_rad", "truth.h_m",
-             "truth.velocity_n", "truth.heading_rad", "truth.pitch_rad", "truth.roll_rad", "truth.position_e"])
-        self._epochs: tuple = (None, {})  # (chunk, {step in chunk: epoch index}) of the last chunk served
+        self._imu_names = ([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
+                           + ["imu.dtheta_sub", "imu.dv_sub"])
+        self._step_signals = [s for s in STEP_SIGNALS if s.present(self.dims)]
+        truth = signal("truth")
+        self._truth = [(f"{truth.fmu_name}.{c.name}", c.source) for c in truth.components]
+        real = {v.name for v in self.store.table if v.type == "real"}
+        steps = [s.fmu_name for s in self._step_signals]
+        # the per-step rows: reals (time, IMU, per-step signals, truth), then the rest
+        self._real_names = (["time.t_s", *self._imu_names] + [n for n in steps if n in real]
+                            + [name for name, _ in self._truth])
+        self._other_names = ["time.step", "time.steps_in_interval"] + [n for n in steps if n not in real]
+        self._real_rows = self.store.segments(self._real_names)
+        self._other_rows = self.store.segments(self._other_names)
+        sizes = {v.name: v.size for v in self.store.table}
+        self._column = {name: int(col) for names in (self._real_names, self._other_names)  # a name's first column
+                        for name, col in zip(names, np.cumsum([0] + [sizes[n] for n in names])[:-1])}
+        self._gnss_real = self.store.segments(["gnss.t_s", "gnss.pseudorange_m", "gnss.pseudorange_rate_mps",
+                                               "gnss.sat_pos_e", "gnss.sat_vel_e"])
+        self._gnss_bool = self.store.segments(["gnss.receiver_outage", "gnss.valid"])
+        self._gnss_int = self.store.segments(["gnss.n_valid"])
+        self._new_epoch = self.store.slot("gnss.new_epoch")
+        self._chunk: Any = None  # the chunk whose rows are laid out
         self._info(self.base_scenario)
 
     # -- initialisation ---------------------------------------------------------------
@@ -491,6 +522,7 @@ class PlantRuntime(_RuntimeBase):
         self.nav_ticks = self.timing.nav_ticks
         self.end_tick = self.timing.steps * self.nav_ticks
         self.tick = 0
+        self._chunk = None
         start = sim.reset(seed)
         a0 = float(params["motion.accel_mps2"])
         if self.external and a0 != 0.0:  # Simulator.reset starts external motion at zero acceleration
@@ -499,11 +531,12 @@ class PlantRuntime(_RuntimeBase):
             start = type(start)(truth=sim.truth_at([0.0]), prior=start.prior)
         self._info(scenario)
         self.store.write("gnss.prn", np.asarray(sim.constellation.prn))
-        p = start.prior
-        for name, value in (("lat_rad", p.lat), ("lon_rad", p.lon), ("h_m", p.h), ("velocity_n", p.velocity_n),
-                            ("heading_rad", p.heading), ("pitch_rad", p.pitch), ("roll_rad", p.roll)):
-            self.store.write(f"prior.{name}", value)
-        self._write_truth(start.truth, 0)
+        prior = signal("prior")  # its components are the solution layout (signal table)
+        row = start.prior.as_action()
+        for arr, where, cols in self.store.segments([f"{prior.fmu_name}.{c.name}" for c in prior.components]):
+            arr[where] = row[cols]
+        for (arr, where, cols) in self.store.segments([name for name, _ in self._truth]):
+            arr[where] = _truth_row(start.truth, self._truth, 0)[cols]
         self.initialised = True
         self.log(f"navsim {_version()} plant: scenario {scenario.name!r} (config {scenario.config_hash()}), "
                  f"seed {seed}, tick {self.timing.tick_s} s, navigation step {self.timing.nav_period_s} s")
@@ -520,14 +553,58 @@ class PlantRuntime(_RuntimeBase):
         k = new_tick // self.nav_ticks - self.tick // self.nav_ticks
         if self.external:
             self._push_motion(new_tick, h)
-        served = [self.sim.step() for _ in range(k)]
-        self.tick = new_tick
-        self.store.write("time.steps_in_interval", k)
-        if k:
-            self._write_steps(served)
+        step = self.sim.step
+        if k == 1:
+            chunk, i = step()
+            self.tick = new_tick
+            if chunk is not self._chunk:
+                self._lay_out(chunk)
+            real, other = self._rows
+            for arr, where, cols in self._real_rows:
+                arr[where] = real[i, cols]
+            for arr, where, cols in self._other_rows:
+                arr[where] = other[i, cols]
+            self._write_epoch(self._epoch_of[i])
+        elif k:
+            self._write_steps([step() for _ in range(k)])
+            self.tick = new_tick
         else:
-            self._zero_increments()
-            self.store.write("gnss.new_epoch", False)
+            self.tick = new_tick
+            self._write_idle()
+
+    def _lay_out(self, chunk: Any) -> None:
+        """The rows of a new chunk (class docstring): reals (n, ...) and the others (n, ...)
+        in the column order of :attr:`_real_names` / :attr:`_other_names`, and its epochs."""
+        n = len(chunk)
+        imu = chunk.imu
+        real = [chunk.t[:, None], imu.dtheta_r.reshape(n, -1), imu.dv_r.reshape(n, -1),
+                imu.dtheta_sample[:, :, 0].reshape(n, -1), imu.dv_sample[:, :, 0].reshape(n, -1)]
+        other = [(chunk.step0 + 1 + np.arange(n))[:, None], np.ones((n, 1), dtype=np.int64)]
+        for sig in self._step_signals:
+            (real if sig.dtype == "float64" else other).append(sig.read(chunk).reshape(n, -1))
+        real.append(_truth_rows(chunk.truth, self._truth))
+        self._rows = (np.concatenate(real, axis=1), np.concatenate(other, axis=1))
+        epoch_of: list = [None] * n
+        g = chunk.gnss
+        if g is not None and len(chunk.gnss_step):
+            e = len(chunk.gnss_step)
+            g_real = np.concatenate([g.t[:, None], g.pseudorange_m, g.pseudorange_rate_mps,
+                                     g.sat_pos_e.reshape(e, -1), g.sat_vel_e.reshape(e, -1)], axis=1)
+            g_bool = np.concatenate([np.asarray(chunk.receiver_outage, dtype=bool)[:, None], g.valid], axis=1)
+            g_int = g.valid.sum(axis=1, dtype=np.int64)[:, None]
+            for j, at in enumerate(chunk.gnss_step.tolist()):
+                epoch_of[at] = (g_real[j], g_bool[j], g_int[j])
+        self._epoch_of = epoch_of
+        self._chunk = chunk
+
+    def _write_epoch(self, epoch: Any) -> None:
+        """``gnss.new_epoch`` and, at an epoch, the epoch's values (held until the next one)."""
+        arr, sl = self._new_epoch
+        arr[sl] = epoch is not None
+        if epoch is not None:
+            for (rows, row) in ((self._gnss_real, epoch[0]), (self._gnss_bool, epoch[1]), (self._gnss_int, epoch[2])):
+                for arr, where, cols in rows:
+                    arr[where] = row[cols]
 
     def _push_motion(self, new_tick: int, h: float) -> None:
         s = float(self.store.read("motion.s_m"))
@@ -544,64 +621,66 @@ class PlantRuntime(_RuntimeBase):
         except ConfigError as exc:
             raise FmuError(f"motion inputs: {exc}") from None
 
-    def _zero_increments(self) -> None:
-        for r in range(1, self.dims.orders + 1):
-            self.store.write(f"imu.dtheta_r{r}", np.zeros(3))
-            self.store.write(f"imu.dv_r{r}", np.zeros(3))
-        if self.dims.odometer:
-            self.store.write("odometer.ds_m", 0.0)
-            self.store.write("odometer.pulses", 0)
-        if self.dims.baro:
-            self.store.write("baro.altitude_m", 0.0)
+    def _write_idle(self) -> None:
+        """A communication step that ended inside a navigation step: no step served, the
+        multiple-integral increments and every per-step signal zero, no new epoch."""
+        self.store.write("time.steps_in_interval", 0)
+        for name in self._imu_names[:2 * self.dims.orders]:
+            self.store.write(name, np.zeros(3))
+        for sig in self._step_signals:
+            self.store.write(sig.fmu_name, 0)
+        self._write_epoch(None)
 
-    def _write_steps(self, served) -> None:
+    def _write_steps(self, served: list) -> None:
+        """k > 1 navigation steps in one communication step: the IMU increments composed
+        exactly, per-step signals summed ("sum") or the last one ("last"), the rest of the
+        last step; the latest epoch of the interval."""
         from navsim.sensors.imu import compose_multiple_integrals
 
         chunk, i = served[-1]
-        imu = chunk.imu
-        if len(served) == 1:
-            dtheta, dv = imu.dtheta_r[i], imu.dv_r[i]
-        else:  # exact composition of several navigation steps (seed 000 eq. 1.14)
-            dt = self.timing.nav_period_s
-            dtheta = compose_multiple_integrals(np.stack([c.imu.dtheta_r[j] for c, j in served])[None], dt)[0]
-            dv = compose_multiple_integrals(np.stack([c.imu.dv_r[j] for c, j in served])[None], dt)[0]
-        self._write_imu(np.concatenate((dtheta.ravel(), dv.ravel(), imu.dtheta_sample[i, :, 0].ravel(),
-                                        imu.dv_sample[i, :, 0].ravel())).tolist())
-        if self.dims.odometer:  # distances and pulse counts of consecutive steps add exactly
-            self.store.write("odometer.ds_m", math.fsum(float(c.odometer.ds_m[j]) for c, j in served))
-            self.store.write("odometer.pulses", int(sum(int(c.odometer.pulses[j]) for c, j in served)))
-        if self.dims.baro:  # the reading at the end of the interval
-            self.store.write("baro.altitude_m", float(chunk.baro.altitude_m[i]))
-        self._write_truth(chunk.truth, i)
-        self.store.write("time.t_s", float(chunk.t[i]))
-        self.store.write("time.step", chunk.step0 + i + 1)
+        if chunk is not self._chunk:
+            self._lay_out(chunk)
+        real, other = self._rows[0][i].copy(), self._rows[1][i].copy()
+        dt = self.timing.nav_period_s
+        dtheta = compose_multiple_integrals(np.stack([c.imu.dtheta_r[j] for c, j in served])[None], dt)[0]
+        dv = compose_multiple_integrals(np.stack([c.imu.dv_r[j] for c, j in served])[None], dt)[0]
+        a = 3 * self.dims.orders
+        col = self._column
+        c0 = col[self._imu_names[0]]
+        real[c0:c0 + 2 * a] = np.concatenate((dtheta.ravel(), dv.ravel()))
+        other[col["time.steps_in_interval"]] = len(served)
+        for sig in self._step_signals:
+            if sig.compose != "sum":  # "last": the reading at the end of the interval
+                continue
+            values = [sig.read(c)[j] for c, j in served]
+            if sig.dtype == "float64":  # distances of consecutive steps add exactly
+                real[col[sig.fmu_name]] = math.fsum(float(x) for x in values)
+            else:
+                other[col[sig.fmu_name]] = sum(int(x) for x in values)
+        for arr, where, cols in self._real_rows:
+            arr[where] = real[cols]
+        for arr, where, cols in self._other_rows:
+            arr[where] = other[cols]
         epoch = None
         for c, j in served:
-            if c.gnss is not None and len(c.gnss_step):
-                if self._epochs[0] is not c:
-                    self._epochs = (c, {int(step): e for e, step in enumerate(c.gnss_step)})
-                e = self._epochs[1].get(j)
-                if e is not None:
-                    epoch = (c, e)
-        self.store.write("gnss.new_epoch", epoch is not None)
-        if epoch is not None:
-            c, e = epoch
-            g = c.gnss
-            self.store.write("gnss.t_s", float(g.t[e]))
-            self.store.write("gnss.receiver_outage", bool(c.receiver_outage[e]))
-            self.store.write("gnss.n_valid", int(g.valid[e].sum()))
-            self.store.write("gnss.valid", g.valid[e])
-            self.store.write("gnss.pseudorange_m", g.pseudorange_m[e])
-            self.store.write("gnss.pseudorange_rate_mps", g.pseudorange_rate_mps[e])
-            self.store.write("gnss.sat_pos_e", g.sat_pos_e[e])
-            self.store.write("gnss.sat_vel_e", g.sat_vel_e[e])
+            if c is not self._chunk:
+                self._lay_out(c)
+            if self._epoch_of[j] is not None:
+                epoch = self._epoch_of[j]
+        if self._chunk is not chunk:
+            self._lay_out(chunk)
+        self._write_epoch(epoch)
 
-    def _write_truth(self, truth, i: int) -> None:
-        v, p = truth.velocity_n[i], truth.position_e[i]
-        self._write_truth_block([float(truth.s[i]), float(truth.speed[i]), float(truth.accel_along[i]),
-                                 float(truth.lat[i]), float(truth.lon[i]), float(truth.h[i]), float(v[0]), float(v[1]),
-                                 float(v[2]), float(truth.heading[i]), float(truth.pitch[i]), float(truth.roll[i]),
-                                 float(p[0]), float(p[1]), float(p[2])])
+
+def _truth_rows(truth: Any, components: list[tuple[str, str]]) -> np.ndarray:
+    """(n, 15) truth rows of a chunk's true state in the truth signal's component order."""
+    n = len(truth.s)
+    return np.concatenate([np.asarray(getattr(truth, src.split(".", 1)[1])).reshape(n, -1) for _, src in components],
+                          axis=1)
+
+
+def _truth_row(truth: Any, components: list[tuple[str, str]], i: int) -> np.ndarray:
+    return _truth_rows(truth, components)[i]
 
 
 # =========================================================================== estimator
@@ -621,14 +700,25 @@ class EstimatorRuntime(_RuntimeBase):
         self.dims = Dimensions.of_scenario(self.base_scenario, len(self.prn))
         defaults = {"estimator.name": self.meta.get("estimator", ""),
                     "estimator.options": self.meta.get("estimator_options", "")}
-        self.store = ValueStore(estimator_variables(self.dims, defaults), fmi)
+        store = self.store = ValueStore(estimator_variables(self.dims, defaults), fmi)
         orders = range(1, self.dims.orders + 1)
-        self._read_imu = self.store.block_reader([f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
-                                                 + ["imu.dtheta_sub", "imu.dv_sub"])
-        self._write_solution = self.store.block_writer(  # consecutive: one slice under FMI 2
-            ["nav.t_s", "nav.step", "nav.lag_steps", "nav.lat_rad", "nav.lon_rad", "nav.h_m", "nav.velocity_n",
-             "nav.heading_rad", "nav.pitch_rad", "nav.roll_rad", "nav.sigma_position_n", "nav.sigma_velocity_n",
-             "nav.sigma_attitude_n", "nav.covariance", "nav.nis", "nav.nis_dof"])
+        self._imu = _one_span(store, [f"imu.dtheta_r{r}" for r in orders] + [f"imu.dv_r{r}" for r in orders]
+                              + ["imu.dtheta_sub", "imu.dv_sub"])
+        self._gnss = _one_span(store, ["gnss.t_s", "gnss.pseudorange_m", "gnss.pseudorange_rate_mps", "gnss.sat_pos_e",
+                                       "gnss.sat_vel_e"])
+        self._valid = store.slot("gnss.valid")[1]
+        self._at = {name: store.slot(name)[1].start for name in ("time.step", "time.t_s", "gnss.new_epoch")}
+        self._meas_signals = [(s.measurement, store.slot(s.fmu_name)[1].start, s.dtype == "float64")
+                              for s in MEASUREMENT_SIGNALS if s.present(self.dims)]
+        solution, prior = signal("solution"), signal("prior")
+        self._prior_names = [(c.name, f"{prior.fmu_name}.{c.name}") for c in prior.components]
+        # the solution block: reals [t_s, solution (9), sigmas (9), covariance (81), nis], ints [step, lag, nis_dof]
+        self._sol_real = store.segments(["nav.t_s", *(f"{solution.fmu_name}.{c.name}" for c in solution.components),
+                                         "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n",
+                                         "nav.covariance", "nav.nis"])
+        self._sol_int = store.segments(["nav.step", "nav.lag_steps", "nav.nis_dof"])
+        self._real_buf = np.empty(101)
+        self._int_buf = np.zeros(3, dtype=np.int64)
         self._info(self.base_scenario)
 
     def exit_initialization_mode(self) -> None:
@@ -670,7 +760,8 @@ class EstimatorRuntime(_RuntimeBase):
         when the step or the plant's counter breaks the rules of the module docstring."""
         n = self._step_ticks(t, h)
         dt = self.timing.nav_period_s
-        c = int(self.store.read("time.step"))
+        store, at = self.store, self._at
+        c = int(store.int[at["time.step"]])
         done = self.processed
         n0, n1 = self.tick // self.nav_ticks, (self.tick + n) // self.nav_ticks
         span = self.span if self.span is not None else (n1 - n0 if n1 > n0 else None)
@@ -704,12 +795,12 @@ class EstimatorRuntime(_RuntimeBase):
                                "its order, or time.step is not connected (is time.step connected?)")
             raise FmuError(f"the plant's time.step input {c} is ahead of the estimator (t = {t!r} s, h = {h!r} "
                            f"s; {order} gives {want}): plant and estimator must start and step together")
-        t_in = float(self.store.read("time.t_s"))
+        t_in = float(store.real[at["time.t_s"]])
         if c and not abs(t_in - c * dt) <= REL_TOL * max(1.0, c * dt) + 1e-12:
             raise FmuError(f"the plant's time.t_s input {t_in!r} s is not the end of its step {c} with this "
                            f"estimator's navigation step {dt!r} s: plant and estimator of different scenarios?")
-        if c == done + k and k > 1 and self.store.read("gnss.new_epoch"):
-            t_epoch = float(self.store.read("gnss.t_s"))
+        if c == done + k and k > 1 and store.bool[at["gnss.new_epoch"]]:
+            t_epoch = float(store.real[self._gnss.start])
             if not abs(t_epoch - c * dt) <= REL_TOL * max(1.0, c * dt) + 1e-12:
                 raise FmuError(f"the GNSS epoch at {t_epoch!r} s fell inside the composed interval "
                                f"({(c - k) * dt!r}, {c * dt!r}] s: the estimator would apply it at the interval's "
@@ -765,53 +856,73 @@ class EstimatorRuntime(_RuntimeBase):
         self.lagged, self.span = self._lagged_next, self._span_next
         self.tick += n
 
-    def _prior(self):
-        from navsim.simulator import Prior
+    def _prior(self) -> Any:
+        from navsim.types import Prior
 
         read = self.store.read
-        return Prior(t=0.0, lat=float(read("prior.lat_rad")), lon=float(read("prior.lon_rad")),
-                     h=float(read("prior.h_m")), velocity_n=read("prior.velocity_n"),
-                     heading=float(read("prior.heading_rad")), pitch=float(read("prior.pitch_rad")),
-                     roll=float(read("prior.roll_rad")), covariance=self.prior_covariance.copy())
+        v = {name: read(fmu) for name, fmu in self._prior_names}  # the solution layout (signal table)
+        return Prior(t=0.0, lat=float(v["lat_rad"]), lon=float(v["lon_rad"]), h=float(v["h_m"]),
+                     velocity_n=v["velocity_n"], heading=float(v["heading_rad"]), pitch=float(v["pitch_rad"]),
+                     roll=float(v["roll_rad"]), covariance=self.prior_covariance.copy())
 
-    def _measurement(self, c: int, k: int):
-        """The Measurement of plant steps ``c - k .. c - 1`` (one navigation step when k = 1)."""
-        read = self.store.read
-        orders = self.dims.orders
+    def _measurement(self, c: int, k: int) -> Measurement:
+        """The Measurement of plant steps ``c - k .. c - 1`` (one navigation step when k = 1):
+        views of one copy of the store's IMU block (and, at an epoch, of its GNSS block), so
+        an estimator may keep them."""
+        store = self.store
+        real = store.real
+        orders, m = self.dims.orders, self.dims.samples_per_step
         gnss = None
-        if read("gnss.new_epoch"):
-            gnss = GnssObservation(
-                t=float(read("gnss.t_s")), prn=self.prn, sat_pos_e=read("gnss.sat_pos_e"),
-                sat_vel_e=read("gnss.sat_vel_e"), pseudorange_m=read("gnss.pseudorange_m"),
-                pseudorange_rate_mps=read("gnss.pseudorange_rate_mps"), valid=read("gnss.valid"))
+        if store.bool[self._at["gnss.new_epoch"]]:
+            g = real[self._gnss].copy()  # [t_s, pseudorange (K), rate (K), sat_pos (K, 3), sat_vel (K, 3)]
+            n = self.dims.channels
+            gnss = GnssObservation(t=float(g[0]), prn=self.prn, sat_pos_e=g[1 + 2 * n:1 + 5 * n].reshape(n, 3),
+                                   sat_vel_e=g[1 + 5 * n:].reshape(n, 3), pseudorange_m=g[1:1 + n],
+                                   pseudorange_rate_mps=g[1 + n:1 + 2 * n], valid=store.bool[self._valid].copy())
         dt = self.timing.nav_period_s
-        flat = self._read_imu()  # [dtheta_r (R, 3), dv_r (R, 3), dtheta_sub (m, 3), dv_sub (m, 3)]
-        a, b = 3 * orders, 3 * self.dims.samples_per_step
+        flat = real[self._imu].copy()  # [dtheta_r (R, 3), dv_r (R, 3), dtheta_sub (m, 3), dv_sub (m, 3)]
+        a, b = 3 * orders, 3 * m
         dtheta_r, dv_r = flat[:a].reshape(orders, 3), flat[a:2 * a].reshape(orders, 3)
         if k == 1:
             dtheta_sub, dv_sub = flat[2 * a:2 * a + b].reshape(-1, 3), flat[2 * a + b:].reshape(-1, 3)
         else:  # the interval as one sample: its first-order increments (the sums of its samples)
             dtheta_sub, dv_sub = dtheta_r[:1], dv_r[:1]
-        return Measurement(
-            step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=dtheta_r, dv_r=dv_r, dtheta_sub=dtheta_sub, dv_sub=dv_sub,
-            gnss=gnss, odometer_ds_m=float(read("odometer.ds_m")) if self.dims.odometer else None,
-            baro_alt_m=float(read("baro.altitude_m")) if self.dims.baro else None)
+        extras = {field: float(real[i]) if is_real else int(store.int[i]) for field, i, is_real in self._meas_signals}
+        return Measurement(step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=dtheta_r, dv_r=dv_r, dtheta_sub=dtheta_sub,
+                           dv_sub=dv_sub, gnss=gnss, **extras)
 
-    def _write_estimate(self, est, t_s: float, tick: int) -> None:
-        """Write the solution, its time, step and lag at FMU time ``tick`` in one block."""
+    def _write_estimate(self, est: Any, t_s: float, tick: int) -> None:
+        """Write the solution, its time, step and lag at FMU time ``tick``: one preallocated
+        real row and one int row, one slice assignment each (the block is consecutive)."""
+        buf = self._real_buf
+        buf[0] = t_s
+        buf[1], buf[2], buf[3] = est.lat, est.lon, est.h
+        buf[4:7] = est.velocity_n
+        buf[7], buf[8], buf[9] = est.heading, est.pitch, est.roll
         cov = est.covariance
         if cov is None:
-            flat, sigma = _NAN81, _NAN9
+            buf[10:100] = math.nan
         else:  # standard deviations from the diagonal, every 10th element of the row-major 9 x 9
-            flat = np.asarray(cov, dtype=float).ravel().tolist()
-            sigma = [math.sqrt(abs(flat[i])) for i in range(0, 81, 10)]
+            flat = buf[19:100]
+            flat[:] = np.ravel(cov)
+            np.sqrt(np.abs(flat[::10]), out=buf[10:19])
         nis = getattr(est, "nis", None)
-        v = est.velocity_n
-        vel = v.tolist() if type(v) is np.ndarray else [float(x) for x in v]
-        self._write_solution([t_s, self.processed, tick // self.nav_ticks - self.processed, float(est.lat),
-                              float(est.lon), float(est.h), *vel, float(est.heading), float(est.pitch),
-                              float(est.roll), *sigma, *flat, math.nan if nis is None else float(nis),
-                              int(est.nis_dof or 0) if nis is not None else 0])
+        buf[100] = math.nan if nis is None else nis
+        ints = self._int_buf
+        ints[0], ints[1] = self.processed, tick // self.nav_ticks - self.processed
+        ints[2] = int(est.nis_dof or 0) if nis is not None else 0
+        for arr, where, cols in self._sol_real:
+            arr[where] = buf[cols]
+        for arr, where, cols in self._sol_int:
+            arr[where] = ints[cols]
+
+
+def _one_span(store: ValueStore, names: list[str]) -> slice:
+    """The slice of consecutive variables ``names`` in one typed array of ``store``."""
+    segments = store.segments(names)
+    if len(segments) != 1:
+        raise FmuError(f"variables {names} are not consecutive in the FMU's value table")
+    return segments[0][1]
 
 
 # Exit of a non-Python host. pythonfmu's shim starts Python itself when the host has none

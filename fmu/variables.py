@@ -1,15 +1,17 @@
 """The one table of navsim's exchanged variables: names, units, descriptions, start values.
 
 The sensor variables of both FMUs (the plant's outputs, the estimator's inputs: IMU
-increments and multiple integrals, GNSS channels, odometer, and ``time.t_s``) are
-generated from the signal table :data:`navsim.signals.SIGNALS` (name, unit, shape,
-type, description of each signal declared once), so a sensor signal declared there
-appears in both FMUs. This module adds only what is FMI-specific: the variable
-causality, variability and start values, the FMU-only variables beside the signals
-(info, parameters, motion inputs, the step counters, ``gnss.t_s`` / ``receiver_outage`` /
-``n_valid`` / ``prn``, ``odometer.pulses``), the solution, prior and truth split into
-named scalars with their units, and the FMI unit definitions. It imports neither
-gymnasium nor pythonfmu.
+increments and multiple integrals, GNSS channels, every optional sensor's outputs, and
+``time.t_s``) and the solution, prior and truth variables are generated from the signal
+table :data:`navsim.signals.SIGNALS` (name, unit, shape, type, description of each
+signal declared once; a signal with ``components`` becomes one variable per component,
+``nav.lat_rad``, ``truth.velocity_n``), so a signal declared there appears in both FMUs,
+and one of an optional sensor only where the scenario has that sensor. This module adds
+only what is FMI-specific: the variable causality, variability and start values, the
+FMU-only variables beside the signals (info, parameters, motion inputs, the step
+counters, ``gnss.t_s`` / ``receiver_outage`` / ``n_valid`` / ``prn``, the solution's
+standard deviations), and the FMI unit definitions. It imports neither gymnasium nor
+pythonfmu.
 
 A :class:`Var` is one signal, scalar or array (``shape``). The FMI 3 FMUs export arrays
 as FMI 3 arrays; the FMI 2 FMUs, which have scalars only, export each element as a
@@ -22,8 +24,7 @@ Groups (``Var.group``)
     ``motion``     inputs: external along-track motion (arc length, speed, acceleration)
     ``imu``        IMU increments and multiple integrals of the last navigation step(s)
     ``gnss``       per-channel GNSS arrays with a validity mask and a new-epoch flag
-    ``odometer``   wheel-odometer distance and pulses (only with an odometer)
-    ``baro``       barometric pressure altitude (only with a barometer)
+    (sensor)       an optional sensor's outputs, group = its name (only with that sensor)
     ``time``       time stamps and counters
     ``truth``      the true state (plant only; never an estimator input)
     ``prior``      the estimator's initial estimate drawn by the simulator
@@ -44,7 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from navsim.signals import SIGNALS, Signal, signal
+from navsim.signals import SIGNALS, Signal, optional_sensors, signal
 
 if TYPE_CHECKING:  # type hints only
     from navsim.scenario import Scenario
@@ -142,30 +143,27 @@ class Dimensions:
     channels : GNSS channels (one per satellite of the constellation).
     orders : multiple-integral orders R of the IMU output.
     samples_per_step : IMU samples m per navigation step.
-    odometer : the scenario has a wheel odometer (``[odometer] enabled``).
-    baro : the scenario has a barometric altimeter (``[baro] enabled``).
+    sensors : the optional sensors the scenario has (names of
+        :data:`navsim.signals.OPTIONAL_SENSORS`, each ``[name] enabled``); a signal with
+        ``optional = name`` is a variable only then.
     """
 
     channels: int
     orders: int
     samples_per_step: int
-    odometer: bool = False
-    baro: bool = False
+    sensors: frozenset[str] = frozenset()
 
     @classmethod
     def of_scenario(cls, scenario: Scenario, channels: int) -> "Dimensions":
         """The dimensions of a :class:`navsim.scenario.Scenario` whose constellation has
         ``channels`` satellites (no simulator built)."""
         return cls(channels=int(channels), orders=int(scenario.imu.orders),
-                   samples_per_step=int(scenario.timing.samples_per_step), odometer=bool(scenario.odometer.enabled),
-                   baro=bool(scenario.baro.enabled))
+                   samples_per_step=int(scenario.timing.samples_per_step), sensors=optional_sensors(scenario))
 
     @classmethod
     def of(cls, simulator: Simulator) -> "Dimensions":
         """The dimensions of a built :class:`navsim.simulator.Simulator`."""
-        return cls(channels=len(simulator.constellation.prn), orders=int(simulator.scenario.imu.orders),
-                   samples_per_step=int(simulator.timing.samples_per_step),
-                   odometer=bool(simulator.scenario.odometer.enabled), baro=bool(simulator.scenario.baro.enabled))
+        return cls.of_scenario(simulator.scenario, len(simulator.constellation.prn))
 
 
 def size(shape: tuple[int, ...]) -> int:
@@ -200,6 +198,7 @@ def _info_vars() -> list[Var]:
 
 
 _FMI_TYPES = {"float64": "real", "int8": "bool", "int64": "int"}
+_NO_DIMS = Dimensions(0, 0, 0)  # for the signals of fixed shape (solution, prior, truth)
 
 
 def _zero(type_: str):
@@ -228,6 +227,9 @@ def _signal_vars(sig: Signal, dims: Dimensions, causality: str, description: str
     if sig.order_units:
         return [Var(f"{sig.fmu_name}{r}", type_, causality, variability, sig.order_units[r - 1],
                     f"Order r = {r} of {sig.name}: {text}", start, (3,), sig.group) for r in range(1, dims.orders + 1)]
+    if sig.components:
+        return [Var(f"{sig.fmu_name}.{c.name}", type_, causality, variability, c.unit, c.description, start,
+                    (c.size,) if c.size > 1 else (), sig.group, c.low, c.high) for c in sig.components]
     return [Var(sig.fmu_name, type_, causality, variability, sig.unit, text, start, _signal_shape(sig, dims),
                 sig.group)]
 
@@ -250,15 +252,11 @@ def _gnss_extras(dims: Dimensions, causality: str) -> list[Var]:
     ]
 
 
-def _odometer_extras(dims: Dimensions, causality: str) -> list[Var]:
-    """FMU-only odometer variable: the pulse count behind ``odometer.ds_m``."""
-    return [Var("odometer.pulses", "int", causality, "discrete", "",
-                "Wheel-encoder pulses counted over the same steps", 0 if causality == "input" else None, (),
-                "odometer")]
-
-
 # FMI specifics appended after a signal of the table (by signal name)
-_EXTRAS = {"gnss_new_epoch": _gnss_extras, "odometer_ds": _odometer_extras}
+_EXTRAS = {"gnss_new_epoch": _gnss_extras}
+
+
+_NOT_SENSOR = ("time", "solution", "prior", "truth")
 
 
 def _sensor_vars(dims: Dimensions, causality: str) -> list[Var]:
@@ -267,7 +265,7 @@ def _sensor_vars(dims: Dimensions, causality: str) -> list[Var]:
     inputs. A sensor signal declared in :data:`navsim.signals.SIGNALS` appears in both FMUs."""
     out: list[Var] = []
     for sig in SIGNALS:
-        if not sig.observation or sig.group == "time" or (sig.optional and not getattr(dims, sig.optional, False)):
+        if sig.group in _NOT_SENSOR or not sig.present(dims):
             continue
         out += _signal_vars(sig, dims, causality)
         extra = _EXTRAS.get(sig.name)
@@ -312,70 +310,28 @@ def _estimate_time_vars() -> list[Var]:
 
 
 def _truth_vars() -> list[Var]:
-    def v(name, unit, text, shape=()):
-        return Var(f"truth.{name}", "real", "output", "discrete", unit, text, None, shape, "truth")
-
-    return [
-        v("s_m", "m", "True arc length along the track"),
-        v("speed_mps", "m/s", "True speed along the track"),
-        v("accel_mps2", "m/s2", "True acceleration along the track"),
-        v("lat_rad", "rad", "True geodetic latitude"),
-        v("lon_rad", "rad", "True longitude"),
-        v("h_m", "m", "True height above the Earth model"),
-        v("velocity_n", "m/s", "True ground velocity, ENU", (3,)),
-        v("heading_rad", "rad", "True heading, clockwise from north"),
-        v("pitch_rad", "rad", "True pitch, forward axis up"),
-        v("roll_rad", "rad", "True roll, right side down"),
-        v("position_e", "m", "True ECEF position", (3,)),
-    ]
+    return _signal_vars(signal("truth"), _NO_DIMS, "output")
 
 
 def _prior_vars(causality: str) -> list[Var]:
-    inp = causality == "input"
-    var = "discrete"
-
-    def v(name, unit, text, shape=()):
-        return Var(f"prior.{name}", "real", causality, var, unit, text, 0.0 if inp else None, shape, "prior")
-
-    return [
-        v("lat_rad", "rad", "Initial estimate of latitude (truth plus a drawn error; set at initialisation)"),
-        v("lon_rad", "rad", "Initial estimate of longitude"),
-        v("h_m", "m", "Initial estimate of height"),
-        v("velocity_n", "m/s", "Initial estimate of ENU velocity", (3,)),
-        v("heading_rad", "rad", "Initial estimate of heading"),
-        v("pitch_rad", "rad", "Initial estimate of pitch"),
-        v("roll_rad", "rad", "Initial estimate of roll"),
-    ]
+    return _signal_vars(signal("prior"), _NO_DIMS, causality)
 
 
 def _solution_vars(causality: str = "output") -> list[Var]:
-    def v(name, unit, text, shape=(), low=None, high=None):
-        return Var(f"nav.{name}", "real", causality, "discrete", unit, text, None, shape, "solution", low, high)
-
-    return [
-        v("lat_rad", "rad", "Estimated geodetic latitude", low=-1.5707963267948966, high=1.5707963267948966),
-        v("lon_rad", "rad", "Estimated longitude", low=-3.141592653589793, high=3.141592653589793),
-        v("h_m", "m", "Estimated height", low=-1e4, high=1e5),
-        v("velocity_n", "m/s", "Estimated ENU velocity", (3,), -1e3, 1e3),
-        v("heading_rad", "rad", "Estimated heading", low=-7.0, high=7.0),
-        v("pitch_rad", "rad", "Estimated pitch", low=-3.2, high=3.2),
-        v("roll_rad", "rad", "Estimated roll", low=-3.2, high=3.2),
-    ]
+    return _signal_vars(signal("solution"), _NO_DIMS, causality)
 
 
 def _uncertainty_vars() -> list[Var]:
-    def v(name, unit, text, shape=()):
-        return Var(f"nav.{name}", "real", "output", "discrete", unit, text, None, shape, "solution")
+    """The standard deviations (FMU-only, from the covariance's diagonal), then the
+    covariance, NIS and its degrees of freedom of the signal table."""
+    def v(name, unit, text):
+        return Var(f"nav.{name}", "real", "output", "discrete", unit, text, None, (3,), "solution")
 
     return [
-        v("sigma_position_n", "m", "Standard deviation of the position error, ENU (nan if not estimated)", (3,)),
-        v("sigma_velocity_n", "m/s", "Standard deviation of the velocity error, ENU", (3,)),
-        v("sigma_attitude_n", "rad", "Standard deviation of the attitude error about ENU axes", (3,)),
-        v("covariance", "", "Full 9x9 error covariance, row-major over [dE dN dU dvE dvN dvU psiE psiN psiU] "
-          "(SI units; nan when the estimator gives none)", (9, 9)),
-        v("nis", "", "Normalised innovation squared of an update in the last step (nan: none)"),
-        Var("nav.nis_dof", "int", "output", "discrete", "", "Degrees of freedom of nav.nis (0: no update)",
-            None, (), "solution"),
+        v("sigma_position_n", "m", "Standard deviation of the position error, ENU (nan if not estimated)"),
+        v("sigma_velocity_n", "m/s", "Standard deviation of the velocity error, ENU"),
+        v("sigma_attitude_n", "rad", "Standard deviation of the attitude error about ENU axes"),
+        *(var for name in ("covariance", "nis", "nis_dof") for var in _signal_vars(signal(name), _NO_DIMS, "output")),
     ]
 
 

@@ -21,6 +21,7 @@ from .earth import earth_model
 from .estimators.base import Estimator
 from .scenario import Scenario
 from .sensors import imu as imu_mod
+from .signals import MEASUREMENT_SIGNALS, OPTIONAL_SENSORS
 from .simulator import Chunk, Simulator, build_gnss_error_model, build_imu_model, build_track
 from .types import (
     Context,
@@ -46,11 +47,10 @@ def make_context(source: Scenario | Simulator) -> Context:
     ``source`` is a :class:`~navsim.scenario.Scenario` (no simulator is built: the track
     and each sensor's error model are built from the scenario and asked for their
     nominal specification, :func:`navsim.sensors.imu.nominal_imu`,
-    :meth:`navsim.sensors.gnss.GnssErrorModel.nominal`,
-    :meth:`navsim.sensors.odometer.OdometerModel.nominal`,
-    :meth:`navsim.sensors.baro.BaroModel.nominal` at the track's height at the start) or a built
-    :class:`~navsim.simulator.Simulator` (its track and models are reused). Both give
-    the same context for the same scenario.
+    :meth:`navsim.sensors.gnss.GnssErrorModel.nominal`, and for each enabled optional
+    sensor of :data:`navsim.signals.OPTIONAL_SENSORS` its declared ``nominal``) or a
+    built :class:`~navsim.simulator.Simulator` (its track and models are reused). Both
+    give the same context for the same scenario.
     """
     if isinstance(source, Scenario):
         scenario = source
@@ -58,22 +58,20 @@ def make_context(source: Scenario | Simulator) -> Context:
         earth = earth_model(scenario.earth)
         imu_model = build_imu_model(scenario)
         gnss_model = build_gnss_error_model(scenario)
-        odometer_model = scenario.odometer.model() if scenario.odometer.enabled else None
-        baro_model = scenario.baro.model() if scenario.baro.enabled else None
+        models = {s.name: s.model(scenario) for s in OPTIONAL_SENSORS}
     else:
         scenario, track, earth = source.scenario, source.track, source.earth
         imu_model, gnss_model = source.imu_model, source.gnss_model
-        odometer_model = getattr(source, "odometer_model", None)
-        baro_model = getattr(source, "baro_model", None)
+        models = {s.name: getattr(source, f"{s.name}_model", None) for s in OPTIONAL_SENSORS}
     timing = scenario.timing
+    nominal = {s.name: None if models[s.name] is None else s.nominal(models[s.name], track, scenario)
+               for s in OPTIONAL_SENSORS}
     return Context(
         track=track, earth=earth, nav_period_s=timing.nav_period_s, imu_period_s=timing.imu_period_s,
         gnss_period_s=timing.gnss_period_s, samples_per_step=timing.samples_per_step,
         orders=scenario.imu.orders, imu=imu_mod.nominal_imu(imu_model),
         gnss=gnss_model.nominal(scenario.gnss.lever_arm_m),  # the lever arm as surveyed at installation
-        scenario_name=scenario.name, config_hash=scenario.config_hash(),
-        odometer=None if odometer_model is None else odometer_model.nominal(),
-        baro=None if baro_model is None else baro_model.nominal(float(np.ravel(track.geodetic(scenario.motion.start_s_m)[2])[0])),
+        scenario_name=scenario.name, config_hash=scenario.config_hash(), **nominal,
     )
 
 
@@ -96,8 +94,7 @@ def measurement_batch(chunk: Chunk, prn: np.ndarray, dt: float) -> MeasurementBa
         step=chunk.step0 + np.arange(len(chunk)), t=chunk.t, dt=dt, dtheta_r=imu.dtheta_r, dv_r=imu.dv_r,
         dtheta_sub=imu.dtheta_sample[:, :, 0], dv_sub=imu.dv_sample[:, :, 0],
         gnss=tuple(sorted(_epochs(chunk, prn).items())),
-        odometer_ds_m=None if chunk.odometer is None else chunk.odometer.ds_m,
-        baro_alt_m=None if chunk.baro is None else chunk.baro.altitude_m,
+        **{s.measurement: s.read(chunk) for s in MEASUREMENT_SIGNALS},  # the optional sensors' (signal table)
     )
 
 
@@ -123,14 +120,13 @@ def measurements(chunk: Chunk, prn: np.ndarray, dt: float) -> Iterator[Measureme
     """The per-step measurements of a chunk (GNSS attached at epoch steps)."""
     epochs = _epochs(chunk, prn)
     imu = chunk.imu
-    odometer = None if chunk.odometer is None else chunk.odometer.ds_m.tolist()
-    baro = None if chunk.baro is None else chunk.baro.altitude_m.tolist()
+    extras = [(s.measurement, values.tolist()) for s in MEASUREMENT_SIGNALS  # the optional sensors' fields
+              if (values := s.read(chunk)) is not None]
     for i in range(len(chunk)):
         yield Measurement(
             step=chunk.step0 + i, t=float(chunk.t[i]), dt=dt, dtheta_r=imu.dtheta_r[i], dv_r=imu.dv_r[i],
             dtheta_sub=imu.dtheta_sample[i, :, 0], dv_sub=imu.dv_sample[i, :, 0], gnss=epochs.get(i),
-            odometer_ds_m=None if odometer is None else odometer[i],
-            baro_alt_m=None if baro is None else baro[i],
+            **{field: values[i] for field, values in extras},
         )
 
 

@@ -15,8 +15,8 @@ The faces read them from :data:`SIGNALS`:
 * the navigation solution is the 9-vector of :data:`SOLUTION_FIELDS` (the action layout,
   :meth:`navsim.types.NavSolution.as_action`) with its 9 x 9 covariance over
   :data:`navsim.types.STATE_LABELS`, NIS and its degrees of freedom;
-* truth (for opt-in supervision, ``truth_in_info``; plant FMU outputs) is the same
-  layout plus the arc length.
+* truth (plant FMU outputs) is the along-track state, the solution layout and the ECEF
+  position (:data:`TRUTH_FIELDS`).
 
 Table (``R`` multiple-integral orders, ``m`` IMU samples per navigation step, ``k``
 GNSS channels, one per satellite of the constellation, in ``gnss_prn`` order):
@@ -44,7 +44,8 @@ name                       shape        unit      meaning
                                                   heading, pitch, roll (rad)
 ``covariance``             (9, 9)       SI        over STATE_LABELS (m, m/s, rad)
 ``nis`` / ``nis_dof``      (1,)                   NIS of an update, its dof (nan/0: none)
-``truth``                  (10,)        mixed     the solution layout plus the arc length s
+``prior``                  (9,)         mixed     the initial estimate, the solution layout
+``truth``                  (15,)        mixed     s, speed, accel, the solution layout, ECEF
 =========================  ===========  ========  ========================================
 
 Observation entries are flattened row by row (``obs["dtheta_r"].reshape(R, 3)`` is the
@@ -63,12 +64,26 @@ description) each signal gives ``fmu_name`` (structured ``group.quantity`` name)
 ``order_units``, one per order r, and are exported as ``{fmu_name}{r}`` of shape (3,)),
 ``shape`` (:meth:`Signal.dims`), ``dtype`` and ``causality`` (``output`` of the core:
 sensor data, truth; ``input`` of the core: the solution an agent or estimator returns).
-The plant FMU's outputs are the ``sensor`` and ``truth`` signals, the estimator FMU takes
-the ``sensor`` signals as inputs and gives the ``solution`` signals.
+The plant FMU's outputs are the sensor signals (every group but time, solution, prior,
+truth), the ``truth`` and ``prior`` signals; the estimator FMU takes the sensor and
+``prior`` signals as inputs and gives the ``solution`` signals. A signal with
+``components`` (solution, prior, truth) is exported as one variable per
+:class:`Component` (``nav.lat_rad``, ``truth.velocity_n``).
 
-Adding an output: declare one :class:`Signal` in :data:`SIGNALS` (with ``source``, the
-path of the chunk attribute it is read from) and, when the data comes from a new
-sensor, fill it in :meth:`ObservationCodec.encode_chunk` and :meth:`ObservationCodec.decode`.
+Optional sensors (:data:`OPTIONAL_SENSORS`): each is declared once with its name (the
+scenario section ``[name] enabled``, the :class:`~navsim.types.Context` field, the
+chunk attribute) and how its nominal specification is obtained; a signal names its
+sensor in ``optional``, the chunk array it is read from in ``source``, the
+:class:`~navsim.types.Measurement` field it fills in ``measurement`` and how the plant
+FMU combines several navigation steps in ``compose``. From that declaration alone,
+:func:`navsim.episode.make_context`, the measurements of :mod:`navsim.episode`, both
+FMUs (variables, plant outputs, estimator inputs) and the Gymnasium observation space
+carry it.
+
+Adding an output of an existing sensor: declare one :class:`Signal` in :data:`SIGNALS`
+(with ``source``, ``measurement`` and ``compose`` for a per-step quantity); the
+observation codec's :meth:`ObservationCodec.encode_chunk` and
+:meth:`ObservationCodec.decode` still fill the optional sensors' entries by name.
 
 References
 ----------
@@ -82,7 +97,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
 import numpy as np
 
@@ -100,8 +115,14 @@ __all__ = [
     "SOLUTION_FIELDS",
     "TRUTH_FIELDS",
     "Signal",
+    "Component",
+    "OptionalSensor",
+    "OPTIONAL_SENSORS",
+    "optional_sensors",
     "Layout",
     "SIGNALS",
+    "MEASUREMENT_SIGNALS",
+    "STEP_SIGNALS",
     "OBS_KEYS",
     "ODOMETER_KEY",
     "BARO_KEY",
@@ -145,10 +166,70 @@ UNIT_EXPONENTS: dict[str, dict[str, int]] = {
 
 SOLUTION_FIELDS = ("lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "roll")
 """The navigation-solution vector (rad, rad, m, m/s, m/s, m/s, rad, rad, rad)."""
-TRUTH_FIELDS = SOLUTION_FIELDS + ("s",)
-"""The truth vector: the solution layout plus the arc length s (m)."""
+TRUTH_FIELDS = ("s", "speed", "accel", "lat", "lon", "h", "vE", "vN", "vU", "heading", "pitch", "roll", "xE", "yE",
+                "zE")
+"""The truth vector: arc length s (m), along-track speed (m/s) and acceleration (m/s^2), the
+solution layout, the ECEF position (m)."""
 
-Group = Literal["time", "imu", "gnss", "odometer", "baro", "solution", "truth"]
+Group = Literal["time", "imu", "gnss", "odometer", "baro", "solution", "truth", "prior"]
+
+
+@dataclass(frozen=True, slots=True)
+class OptionalSensor:
+    """A sensor a scenario may leave out, declared once for every face.
+
+    ``name`` is the scenario section (``[name] enabled``), the
+    :class:`~navsim.types.Context` field of its nominal specification, the chunk
+    attribute of its output (``chunk.<name>``, None without it) and the simulator's
+    ``<name>_model``. ``nominal(model, track, scenario)`` is the nominal specification
+    the estimator is told (:func:`navsim.episode.make_context`). A :class:`Signal` with
+    ``optional = name`` exists only where the sensor is enabled.
+    """
+
+    name: str
+    nominal: Callable[[Any, Any, Any], Any]
+
+    def enabled(self, scenario: Any) -> bool:
+        """Whether ``scenario`` has the sensor (its section's ``enabled``)."""
+        return bool(getattr(scenario, self.name).enabled)
+
+    def model(self, scenario: Any) -> Any:
+        """The sensor's error model of ``scenario`` (its section's ``model()``), None when disabled."""
+        return getattr(scenario, self.name).model() if self.enabled(scenario) else None
+
+
+def _start_height(track: Any, scenario: Any) -> float:
+    """Height of the track at the motion's start, m (where a barometer's nominal spec is taken)."""
+    return float(np.ravel(track.geodetic(scenario.motion.start_s_m)[2])[0])
+
+
+OPTIONAL_SENSORS: tuple[OptionalSensor, ...] = (
+    OptionalSensor("odometer", lambda model, track, scenario: model.nominal()),
+    OptionalSensor("baro", lambda model, track, scenario: model.nominal(_start_height(track, scenario))),
+)
+"""The optional sensors, in stream order (:mod:`navsim.simulator`)."""
+
+
+def optional_sensors(scenario: Any) -> frozenset[str]:
+    """Names of the :data:`OPTIONAL_SENSORS` that ``scenario`` has enabled."""
+    return frozenset(s.name for s in OPTIONAL_SENSORS if s.enabled(scenario))
+
+
+@dataclass(frozen=True, slots=True)
+class Component:
+    """A named part of a vector signal as the FMUs export it (one variable each):
+    ``{Signal.fmu_name}.{name}`` of ``size`` elements (1: a scalar), with its own unit,
+    description and finite bounds for a face (None: the face picks a default); ``source``
+    is the per-step chunk array it is read from (dotted path, as :attr:`Signal.source`),
+    or "" (not read from a chunk)."""
+
+    name: str
+    unit: str
+    description: str
+    size: int = 1
+    low: float | None = None
+    high: float | None = None
+    source: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,7 +294,17 @@ class Signal:
     causality : "output" (leaves the core) or "input" (enters it: what an agent returns).
     observation : part of the Gymnasium observation.
     order_units : per-order units of an (R, 3) multiple-integral signal (r = 1, 2, ...).
-    optional : the layout flag that must be set for the signal to exist ("odometer", "baro"), or "".
+    optional : the :class:`OptionalSensor` (and the layout flag) that must be present for
+        the signal to exist, or "" (always there).
+    source : dotted path of the per-step chunk array it is read from
+        (``"odometer.ds_m"``: ``chunk.odometer.ds_m``, leading axis the steps), or "".
+    measurement : the :class:`~navsim.types.Measurement` (and ``MeasurementBatch``)
+        field it fills, or "" (it has its own handling).
+    compose : how the plant FMU combines the values of the k navigation steps of one
+        communication step: "sum" (distances, counts: they add exactly), "last" (a
+        reading at the interval's end); "" (its own handling).
+    components : the named parts the FMUs export instead of one array variable
+        (solution, prior, truth), in element order; () exports the signal whole.
     """
 
     name: str
@@ -228,9 +319,13 @@ class Signal:
     observation: bool = False
     order_units: tuple[str, ...] = ()
     optional: str = ""
+    source: str = ""
+    measurement: str = ""
+    compose: Literal["", "sum", "last"] = ""
+    components: tuple[Component, ...] = ()
 
     def __post_init__(self) -> None:
-        for unit in (self.unit, *self.order_units):
+        for unit in (self.unit, *self.order_units, *(c.unit for c in self.components)):
             if unit and unit not in UNIT_EXPONENTS:
                 raise ValueError(f"Signal {self.name}: unit {unit!r} is not in UNIT_EXPONENTS")
 
@@ -243,9 +338,22 @@ class Signal:
         """Number of scalar elements (the length of the flat observation entry)."""
         return math.prod(self.dims(layout))
 
-    def present(self, layout: Layout) -> bool:
-        """Whether the signal exists in a scenario of this layout."""
-        return not self.optional or bool(getattr(layout, self.optional))
+    def present(self, layout: Any) -> bool:
+        """Whether the signal exists in a scenario of this layout (a :class:`Layout`, or
+        any object with a ``sensors`` set of the optional sensors present)."""
+        if not self.optional:
+            return True
+        sensors = getattr(layout, "sensors", None)
+        return self.optional in sensors if sensors is not None else bool(getattr(layout, self.optional))
+
+    def read(self, chunk: Any) -> np.ndarray | None:
+        """The per-step array of a chunk at :attr:`source` (None when the sensor is absent)."""
+        obj = chunk
+        for part in self.source.split("."):
+            obj = getattr(obj, part)
+            if obj is None:
+                return None
+        return obj
 
     def bounds(self, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
         """Flat (size,) arrays ``(low, high)`` of physical limits (module docstring)."""
@@ -279,6 +387,21 @@ def _sensor(name: str, group: Group, shape: tuple[int | str, ...], unit: str, de
     return Signal(name, group, shape, unit, description, fmu_name, observation=True, **kw)
 
 
+_SOLUTION_BOUNDS: dict[str, tuple[float, float]] = {
+    "lat_rad": (-math.pi / 2, math.pi / 2), "lon_rad": (-math.pi, math.pi), "h_m": (-1e4, 1e5),
+    "velocity_n": (-1e3, 1e3), "heading_rad": (-7.0, 7.0), "pitch_rad": (-3.2, 3.2), "roll_rad": (-3.2, 3.2)}
+"""Finite bounds of the solution's components for a face (angles with room for a wrap)."""
+
+
+def _solution_components(what: str, bounds: dict[str, tuple[float, float]]) -> tuple[Component, ...]:
+    """The FMU parts of a navigation solution (the :data:`SOLUTION_FIELDS` layout)."""
+    parts = (("lat_rad", "rad", "geodetic latitude", 1), ("lon_rad", "rad", "longitude", 1),
+             ("h_m", "m", "height", 1), ("velocity_n", "m/s", "ENU velocity", 3), ("heading_rad", "rad", "heading", 1),
+             ("pitch_rad", "rad", "pitch", 1), ("roll_rad", "rad", "roll", 1))
+    return tuple(Component(name, unit, f"{what} {text}", n, *bounds.get(name, (None, None)))
+                 for name, unit, text, n in parts)
+
+
 SIGNALS: tuple[Signal, ...] = (
     _sensor("t", "time", (1,), "s", "End time of the navigation step", "time.t_s"),
     _sensor("dtheta_r", "imu", ("R", 3), "",
@@ -303,12 +426,14 @@ SIGNALS: tuple[Signal, ...] = (
     _sensor("sat_pos_e", "gnss", ("k", 3), "m", "ECEF satellite position of each channel", "gnss.sat_pos_e"),
     _sensor("sat_vel_e", "gnss", ("k", 3), "m/s", "ECEF satellite velocity of each channel", "gnss.sat_vel_e"),
     _sensor("odometer_ds", "odometer", (1,), "m", "Wheel-odometer distance counted over the step", "odometer.ds_m",
-            optional="odometer"),
+            optional="odometer", source="odometer.ds_m", measurement="odometer_ds_m", compose="sum"),
+    Signal("odometer_pulses", "odometer", (1,), "", "Wheel-encoder pulses counted over the same steps",
+           "odometer.pulses", dtype="int64", optional="odometer", source="odometer.pulses", compose="sum"),
     _sensor("baro_alt", "baro", (1,), "m", "Barometric pressure altitude at the step end (navsim.sensors.baro)",
-            "baro.altitude_m", optional="baro"),
+            "baro.altitude_m", optional="baro", source="baro.altitude_m", measurement="baro_alt_m", compose="last"),
     Signal("solution", "solution", (9,), "",
            "Navigation solution [lat, lon (rad), h (m), vE, vN, vU (m/s), heading, pitch, roll (rad)]", "nav",
-           causality="input"),
+           causality="input", components=_solution_components("Estimated", _SOLUTION_BOUNDS)),
     Signal("covariance", "solution", (9, 9), "",
            "Error covariance over [dE dN dU dvE dvN dvU psiE psiN psiU] (SI; nan: not estimated)", "nav.covariance",
            causality="input"),
@@ -316,12 +441,33 @@ SIGNALS: tuple[Signal, ...] = (
            "nav.nis", causality="input"),
     Signal("nis_dof", "solution", (1,), "", "Degrees of freedom of nis (0: no update)", "nav.nis_dof",
            dtype="int64", causality="input"),
-    Signal("truth", "truth", (10,), "",
-           "True state [lat, lon (rad), h (m), vE, vN, vU (m/s), heading, pitch, roll (rad), s (m)]", "truth"),
+    Signal("prior", "prior", (9,), "",
+           "Initial estimate (truth plus a drawn error), the solution layout, set at initialisation", "prior",
+           components=_solution_components("Initial estimate of", {})),
+    Signal("truth", "truth", (15,), "",
+           "True state [s (m), speed (m/s), accel (m/s2) along the track, lat, lon (rad), h (m), vE, vN, vU (m/s), "
+           "heading, pitch, roll (rad), ECEF position (m)]", "truth", components=(
+               Component("s_m", "m", "True arc length along the track", source="truth.s"),
+               Component("speed_mps", "m/s", "True speed along the track", source="truth.speed"),
+               Component("accel_mps2", "m/s2", "True acceleration along the track", source="truth.accel_along"),
+               Component("lat_rad", "rad", "True geodetic latitude", source="truth.lat"),
+               Component("lon_rad", "rad", "True longitude", source="truth.lon"),
+               Component("h_m", "m", "True height above the Earth model", source="truth.h"),
+               Component("velocity_n", "m/s", "True ground velocity, ENU", 3, source="truth.velocity_n"),
+               Component("heading_rad", "rad", "True heading, clockwise from north", source="truth.heading"),
+               Component("pitch_rad", "rad", "True pitch, forward axis up", source="truth.pitch"),
+               Component("roll_rad", "rad", "True roll, right side down", source="truth.roll"),
+               Component("position_e", "m", "True ECEF position", 3, source="truth.position_e"))),
 )
 """Every signal, observation entries first in observation order."""
 
 _BY_NAME = {s.name: s for s in SIGNALS}
+
+MEASUREMENT_SIGNALS = tuple(s for s in SIGNALS if s.measurement)
+"""The signals that fill a :class:`~navsim.types.Measurement` field of their own
+(``Signal.measurement``) from a chunk array (``Signal.source``): the optional sensors'."""
+STEP_SIGNALS = tuple(s for s in SIGNALS if s.source and s.compose)
+"""The per-step signals the plant FMU serves generically (``source`` and ``compose``)."""
 
 OBS_KEYS = tuple(s.name for s in SIGNALS if s.observation and not s.optional)
 """Keys of every observation; :data:`ODOMETER_KEY` is added with an odometer, :data:`BARO_KEY`

@@ -68,7 +68,7 @@ def test_odometer_through_the_fmus(fmu_dir, scenario):
     odo = scenario.with_overrides({"odometer": {"enabled": True}})
     plant = build_fmu(odo, "plant", 2, fmu_dir / "plant_odo.fmu")
     est = build_fmu(odo, "estimator", 2, fmu_dir / "estimator_odo.fmu", estimator="lc-ekf")
-    names = {v.name for v in plant_variables(Dimensions(channels=24, orders=4, samples_per_step=1, odometer=True))}
+    names = {v.name for v in plant_variables(Dimensions(channels=24, orders=4, samples_per_step=1, sensors=frozenset({"odometer"})))}
     assert {"odometer.ds_m", "odometer.pulses"} <= names
     record = cosimulate(plant, est, seed=SEED)
     reference = run_episode(odo, estimators.make("lc-ekf"), seed=SEED, use_batch=False)

@@ -60,7 +60,9 @@ def test_dimensions_of_simulator(scenario):
     sim = Simulator(scenario)
     d = Dimensions.of(sim)
     assert d == Dimensions(len(sim.constellation.prn), scenario.imu.orders, scenario.timing.samples_per_step)
-    assert all(isinstance(x, int) for x in dataclasses.astuple(d))
+    assert all(isinstance(x, int) for x in (d.channels, d.orders, d.samples_per_step)) and d.sensors == frozenset()
+    odo = Dimensions.of(Simulator(scenario.with_overrides({"odometer": {"enabled": True}})))
+    assert odo.sensors == frozenset({"odometer"})
 
 
 def test_sensor_variables_come_from_the_signal_table(monkeypatch):
