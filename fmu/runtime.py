@@ -713,12 +713,10 @@ class EstimatorRuntime(_RuntimeBase):
         solution, prior = signal("solution"), signal("prior")
         self._prior_names = [(c.name, f"{prior.fmu_name}.{c.name}") for c in prior.components]
         # the solution block: reals [t_s, solution (9), sigmas (9), covariance (81), nis], ints [step, lag, nis_dof]
-        self._sol_real = store.segments(["nav.t_s", *(f"{solution.fmu_name}.{c.name}" for c in solution.components),
-                                         "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n",
-                                         "nav.covariance", "nav.nis"])
-        self._sol_int = store.segments(["nav.step", "nav.lag_steps", "nav.nis_dof"])
-        self._real_buf = np.empty(101)
-        self._int_buf = np.zeros(3, dtype=np.int64)
+        self._sol_real = _one_span(store, ["nav.t_s", *(f"{solution.fmu_name}.{c.name}" for c in solution.components),
+                                           "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n",
+                                           "nav.covariance", "nav.nis"]).start
+        self._sol_int = _one_span(store, ["nav.step", "nav.lag_steps", "nav.nis_dof"]).start
         self._info(self.base_scenario)
 
     def exit_initialization_mode(self) -> None:
@@ -880,41 +878,37 @@ class EstimatorRuntime(_RuntimeBase):
                                    sat_vel_e=g[1 + 5 * n:].reshape(n, 3), pseudorange_m=g[1:1 + n],
                                    pseudorange_rate_mps=g[1 + n:1 + 2 * n], valid=store.bool[self._valid].copy())
         dt = self.timing.nav_period_s
-        flat = real[self._imu].copy()  # [dtheta_r (R, 3), dv_r (R, 3), dtheta_sub (m, 3), dv_sub (m, 3)]
-        a, b = 3 * orders, 3 * m
-        dtheta_r, dv_r = flat[:a].reshape(orders, 3), flat[a:2 * a].reshape(orders, 3)
+        rows = real[self._imu].reshape(-1, 3)  # [dtheta_r (R), dv_r (R), dtheta_sub (m), dv_sub (m)] rows
+        rows = rows.copy()
         if k == 1:
-            dtheta_sub, dv_sub = flat[2 * a:2 * a + b].reshape(-1, 3), flat[2 * a + b:].reshape(-1, 3)
+            dtheta_sub, dv_sub = rows[2 * orders:2 * orders + m], rows[2 * orders + m:]
         else:  # the interval as one sample: its first-order increments (the sums of its samples)
-            dtheta_sub, dv_sub = dtheta_r[:1], dv_r[:1]
-        extras = {field: float(real[i]) if is_real else int(store.int[i]) for field, i, is_real in self._meas_signals}
-        return Measurement(step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=dtheta_r, dv_r=dv_r, dtheta_sub=dtheta_sub,
-                           dv_sub=dv_sub, gnss=gnss, **extras)
+            dtheta_sub, dv_sub = rows[:1], rows[orders:orders + 1]
+        if self._meas_signals:
+            extras = {field: float(real[i]) if is_real else int(store.int[i]) for field, i, is_real in self._meas_signals}
+            return Measurement(step=c // k - 1, t=c * dt, dt=k * dt, dtheta_r=rows[:orders],
+                               dv_r=rows[orders:2 * orders], dtheta_sub=dtheta_sub, dv_sub=dv_sub, gnss=gnss, **extras)
+        return Measurement(c // k - 1, c * dt, k * dt, rows[:orders], rows[orders:2 * orders], dtheta_sub, dv_sub, gnss)
 
     def _write_estimate(self, est: Any, t_s: float, tick: int) -> None:
-        """Write the solution, its time, step and lag at FMU time ``tick``: one preallocated
-        real row and one int row, one slice assignment each (the block is consecutive)."""
-        buf = self._real_buf
-        buf[0] = t_s
-        buf[1], buf[2], buf[3] = est.lat, est.lon, est.h
-        buf[4:7] = est.velocity_n
-        buf[7], buf[8], buf[9] = est.heading, est.pitch, est.roll
+        """Write the solution, its time, step and lag at FMU time ``tick`` straight into the
+        store's consecutive solution block: reals [t_s, solution (9), sigmas (9), covariance
+        (81), nis], ints [step, lag, nis_dof] (one slice assignment per part)."""
+        real, o = self.store.real, self._sol_real
+        v = est.velocity_n
+        real[o:o + 10] = (t_s, est.lat, est.lon, est.h, v[0], v[1], v[2], est.heading, est.pitch, est.roll)
         cov = est.covariance
         if cov is None:
-            buf[10:100] = math.nan
+            real[o + 10:o + 100] = math.nan
         else:  # standard deviations from the diagonal, every 10th element of the row-major 9 x 9
-            flat = buf[19:100]
+            flat = real[o + 19:o + 100]
             flat[:] = np.ravel(cov)
-            np.sqrt(np.abs(flat[::10]), out=buf[10:19])
+            np.sqrt(np.abs(flat[::10]), out=real[o + 10:o + 19])
         nis = getattr(est, "nis", None)
-        buf[100] = math.nan if nis is None else nis
-        ints = self._int_buf
-        ints[0], ints[1] = self.processed, tick // self.nav_ticks - self.processed
-        ints[2] = int(est.nis_dof or 0) if nis is not None else 0
-        for arr, where, cols in self._sol_real:
-            arr[where] = buf[cols]
-        for arr, where, cols in self._sol_int:
-            arr[where] = ints[cols]
+        real[o + 100] = math.nan if nis is None else nis
+        self.store.int[self._sol_int:self._sol_int + 3] = (
+            self.processed, tick // self.nav_ticks - self.processed,
+            (int(est.nis_dof or 0) if nis is not None else 0))
 
 
 def _one_span(store: ValueStore, names: list[str]) -> slice:
