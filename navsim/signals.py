@@ -503,7 +503,7 @@ class ObservationCodec:
     hands out, bit for bit). ``prn`` is the channel order.
     """
 
-    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_odometer", "_baro", "_terminal")
+    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_odometer", "_baro", "_per_step", "_terminal")
 
     def __init__(self, layout: Layout, prn: np.ndarray) -> None:
         self.layout = layout
@@ -513,6 +513,7 @@ class ObservationCodec:
         self._dt = float(layout.nav_period_s)
         self._odometer = bool(layout.odometer)
         self._baro = bool(layout.baro)
+        self._per_step = tuple(s for s in self.signals if s.source and s.measurement)
         terminal = {s.name: np.zeros(s.size(layout), dtype=s.dtype) for s in self.signals}
         terminal["t"][0] = layout.duration_s
         self._terminal = terminal
@@ -547,10 +548,8 @@ class ObservationCodec:
         rows["gnss_valid"] = _frozen(valid)
         for key, value in zip(("pseudorange_m", "pseudorange_rate_mps", "sat_pos_e", "sat_vel_e"), gnss):
             rows[key] = _frozen(value.reshape(n, -1))
-        if self._odometer:
-            rows["odometer_ds"] = _frozen(chunk.odometer.ds_m[:, None])
-        if self._baro:
-            rows["baro_alt"] = _frozen(chunk.baro.altitude_m[:, None])
+        for sig in self._per_step:  # the optional sensors' entries, from their declared chunk arrays
+            rows[sig.name] = _frozen(sig.read(chunk).reshape(n, -1))
         return rows
 
     @staticmethod
@@ -594,10 +593,9 @@ class ObservationCodec:
                        pseudorange_m=np.asarray(g.pseudorange_m, dtype=float),
                        pseudorange_rate_mps=np.asarray(g.pseudorange_rate_mps, dtype=float),
                        sat_pos_e=np.ravel(g.sat_pos_e).astype(float), sat_vel_e=np.ravel(g.sat_vel_e).astype(float))
-        if self._odometer:
-            obs["odometer_ds"] = np.array([0.0 if m.odometer_ds_m is None else m.odometer_ds_m])
-        if self._baro:
-            obs["baro_alt"] = np.array([0.0 if m.baro_alt_m is None else m.baro_alt_m])
+        for sig in self._per_step:
+            value = getattr(m, sig.measurement)
+            obs[sig.name] = np.array([0.0 if value is None else value])
         return obs
 
 
