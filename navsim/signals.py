@@ -549,7 +549,9 @@ class ObservationCodec:
         for key, value in zip(("pseudorange_m", "pseudorange_rate_mps", "sat_pos_e", "sat_vel_e"), gnss):
             rows[key] = _frozen(value.reshape(n, -1))
         for sig in self._per_step:  # the optional sensors' entries, from their declared chunk arrays
-            rows[sig.name] = _frozen(sig.read(chunk).reshape(n, -1))
+            values = sig.read(chunk)
+            if values is not None:
+                rows[sig.name] = _frozen(values.reshape(n, -1))
         return rows
 
     @staticmethod
