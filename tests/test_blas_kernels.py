@@ -7,6 +7,13 @@ shapes or another summation order round differently under the two, so an equalit
 holds on one CPU can fail on another (issue 16). Each case reruns the step/batch equality
 tests of every estimator in a fresh interpreter with ``OPENBLAS_CORETYPE`` set, after
 checking (threadpoolctl) that OpenBLAS really loaded that kernel.
+
+NumPy likewise picks its own SIMD code for transcendental ufuncs on AVX-512 CPUs, where
+``arctan2``, ``arcsin`` & co. then differ from the C library's by an ulp and the
+step/batch comparisons of the attitude angles fall back to a tolerance
+(``tests/tolerances.py``). On such a CPU the last case reruns those tests with NumPy's
+AVX-512 dispatch switched off (``NPY_DISABLE_CPU_FEATURES``), where they must hold bit for
+bit again, so both branches are exercised on every machine that has both.
 """
 
 from __future__ import annotations
@@ -62,4 +69,32 @@ def test_estimator_equalities_hold_under_kernel(kernel):
         env=_child_env(kernel), capture_output=True, text=True, timeout=1200, cwd=str(TESTS.parent))
     tail = "\n".join(run.stdout.splitlines()[-30:])
     assert run.returncode == 0, f"equality tests fail under OPENBLAS_CORETYPE={kernel}:\n{tail}\n{run.stderr[-2000:]}"
+    assert " passed" in tail and " failed" not in tail, tail
+
+
+NUMPY_AVX512 = "X86_V4 AVX512_ICL AVX512_SPR"  # NumPy 2.x's names of its AVX-512 targets
+ELEMENTARY = (EQUALITY + " or step_equals_batch or wrap_is or kernel_equals or with_and_without_kernel")
+
+
+def test_equalities_bit_for_bit_without_numpy_avx512():
+    probe = "import sys; sys.path.insert(0, 'tests'); import tolerances; print(tolerances.numpy_matches_libm())"
+    default = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                             cwd=str(TESTS.parent))
+    assert default.returncode == 0, default.stderr
+    if default.stdout.strip() == "True":
+        pytest.skip("NumPy's transcendental functions are the C library's here: the default run is bit for bit")
+    env = dict(os.environ, NPY_DISABLE_CPU_FEATURES=NUMPY_AVX512, PYTHONHASHSEED="0")
+    env.pop("PYTEST_XDIST_WORKER", None)
+    env.pop("PYTEST_ADDOPTS", None)
+    switched = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120,
+                              cwd=str(TESTS.parent))
+    assert switched.returncode == 0, switched.stderr
+    if switched.stdout.strip() != "True":
+        pytest.skip(f"NumPy's functions differ from the C library's even without AVX-512 ({NUMPY_AVX512!r} off)")
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-k", ELEMENTARY, str(TESTS / "estimators"),
+         str(TESTS / "test_truthgen_kernel.py"), str(TESTS / "test_naverror_context.py")],
+        env=env, capture_output=True, text=True, timeout=1200, cwd=str(TESTS.parent))
+    tail = "\n".join(run.stdout.splitlines()[-30:])
+    assert run.returncode == 0, f"equality tests fail with NumPy's AVX-512 code off:\n{tail}\n{run.stderr[-2000:]}"
     assert " passed" in tail and " failed" not in tail, tail

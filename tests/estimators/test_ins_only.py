@@ -14,7 +14,7 @@ from navsim.metrics import error_vector
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
 from navsim.strapdown.ins import integrate
-from tolerances import assert_covariance_close, assert_same_arithmetic
+from tolerances import assert_covariance_close, assert_same_solution
 
 
 def _scenario(duration=60.0, imu="ideal", **initial):
@@ -82,7 +82,7 @@ def test_step_batch_equals_repeated_step():
     steps = [b.step(m) for m in measurements(chunk, prn, sc.timing.nav_period_s)]
     # states and NIS: the same operations in both paths, bit for bit; the covariance between
     # epochs: one (n, 9) @ (9, 81) product against n one-row ones (tests/tolerances.py)
-    assert_same_arithmetic(out.solution, [s.as_action() for s in steps])
+    assert_same_solution(out.solution, [s.as_action() for s in steps])
     assert_covariance_close(out.covariance, np.array([s.covariance for s in steps]))
 
 

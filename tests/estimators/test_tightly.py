@@ -30,7 +30,7 @@ from navsim.metrics import error_vector, nees
 from navsim.scenario import load_scenario
 from navsim.sensors.gnss import GnssErrorModel, elevation_azimuth
 from navsim.simulator import Simulator
-from tolerances import assert_covariance_close, assert_same_arithmetic
+from tolerances import assert_covariance_close, assert_same_field
 
 CLEAN_STANDALONE = {"preset": "standalone", "overrides": {"ionosphere_zenith_m": 0.0, "troposphere_zenith_m": 0.0,
                                                           "multipath_sigma_m": 0.0}}
@@ -307,7 +307,7 @@ def _assert_batch_equals_step(a, b):
     product in batch and n one-row products in step: equal to the rounding of a 9-term
     sum (tests/tolerances.py)."""
     for field in ("est_lat", "est_lon", "est_h", "est_velocity_n", "est_hpr", "nis"):
-        assert_same_arithmetic(getattr(a, field), getattr(b, field), field)
+        assert_same_field(getattr(a, field), getattr(b, field), field)
     assert_covariance_close(a.est_cov, b.est_cov, n_terms=9)
 
 
