@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from tolerances import assert_same_but_elementary
 
 from navsim.earth import WGS84, mat_en
 from navsim.episode import make_context
@@ -19,8 +20,6 @@ from navsim.naverror import (
 )
 from navsim.scenario import list_scenarios, load_scenario
 from navsim.simulator import Simulator
-
-from tolerances import assert_same_but_elementary
 
 
 def test_wrap_is_the_principal_value_and_scalar_equals_array():

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 import pytest
+from tolerances import assert_same_but_elementary
 
 from navsim import truthgen
 from navsim import truthgen_kernel as tk
@@ -26,8 +27,6 @@ from navsim.motion import TrueState, true_state, truth_channels
 from navsim.rotations import mat_nb_from_hpr
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
-
-from tolerances import assert_same_but_elementary
 
 needs_numba = pytest.mark.skipif(not tk.available(), reason="numba not installed (extra 'fast')")
 

@@ -7,13 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.stats import chi2
+from tolerances import assert_same_solution
 
 from navsim import estimators
 from navsim.episode import make_context, measurement_batch, run_episode
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
-
-from tolerances import assert_same_solution
 
 FILTERS = ("lc-ekf", "tc-ekf")
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from tolerances import assert_covariance_close, assert_same_solution
 
 from navsim.episode import make_context, measurement_batch, measurements, run_episode
 from navsim.estimators import make
@@ -14,7 +15,6 @@ from navsim.metrics import error_vector
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
 from navsim.strapdown.ins import integrate
-from tolerances import assert_covariance_close, assert_same_solution
 
 
 def _scenario(duration=60.0, imu="ideal", **initial):

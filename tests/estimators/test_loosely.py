@@ -12,6 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 from scipy.stats import chi2
+from tolerances import assert_covariance_close, assert_same_arithmetic, assert_same_field, assert_same_solution
 
 from navsim.earth import SPHERICAL, WGS84
 from navsim.episode import make_context, run_episode
@@ -21,7 +22,6 @@ from navsim.metrics import error_vector, nees
 from navsim.rotations import mat_from_rotvec, mat_nb_from_hpr, skew
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
-from tolerances import assert_covariance_close, assert_same_arithmetic, assert_same_field, assert_same_solution
 
 
 # ----------------------------------------------------------------------- F vs mechanisation

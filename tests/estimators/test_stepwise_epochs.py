@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tolerances import assert_covariance_close, assert_same_field
 
 from navsim.episode import run_episode
 from navsim.estimators import make
 from navsim.scenario import load_scenario
-from tolerances import assert_covariance_close, assert_same_field
 
 
 @pytest.mark.parametrize("name", ["lc-ekf", "tc-ekf", "tc-ukf"])

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 from scipy.stats import chi2
+from tolerances import assert_covariance_close, assert_same_field
 
 from navsim.earth import SPHERICAL, WGS84
 from navsim.episode import make_context, measurement_batch, run_episode
@@ -30,7 +31,6 @@ from navsim.metrics import error_vector, nees
 from navsim.scenario import load_scenario
 from navsim.sensors.gnss import GnssErrorModel, elevation_azimuth
 from navsim.simulator import Simulator
-from tolerances import assert_covariance_close, assert_same_field
 
 CLEAN_STANDALONE = {"preset": "standalone", "overrides": {"ionosphere_zenith_m": 0.0, "troposphere_zenith_m": 0.0,
                                                           "multipath_sigma_m": 0.0}}
@@ -525,7 +525,7 @@ def _lever_filter(gnss, seed=2):
     from lever_arm_case import lever_scenario
 
     from navsim.estimators._inserror import BG
-    from navsim.rotations import mat_to_quat, mat_nb_from_hpr
+    from navsim.rotations import mat_nb_from_hpr, mat_to_quat
     from navsim.strapdown.ins import InsState
 
     sc = lever_scenario(2.0).with_overrides({"gnss": gnss})
