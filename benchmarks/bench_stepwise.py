@@ -22,8 +22,8 @@ step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
    pythonfmu FMU (one output, ``do_step`` returns at once), the core's
    ``Simulator.step()``, the plant FMU, and the estimator FMU (lc-ekf) fed with the plant's
    outputs (only its ``doStep`` is timed). Goals: plant <= 2 x (empty + core step),
-   estimator <= 2 x (empty + the estimator's batch cost per step). These are rows only;
-   the FMU runtime is not changed here.
+   estimator <= 2 x (empty + the estimator's batch cost per step). The FMU runtime's
+   value layer is the array-backed store of :mod:`navsim.fmu.runtime`.
 3. **The README's Gymnasium loop** (``gym.make`` + ``EstimatorAgent(estimators.make("lc-ekf"))``)
    over a whole episode against ``run_episode`` of the same scenario, estimator and seed
    (both include the simulation), wall time, with the two episode scores.

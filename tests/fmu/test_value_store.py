@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from navsim.fmu.runtime import FmuError, ValueStore
 from navsim.fmu.variables import Var
 
@@ -78,9 +77,10 @@ def test_a_declared_per_step_signal_is_served_by_the_plant(fmu_dir, scenario, mo
     pytest.importorskip("pythonfmu")
     import navsim.fmu.runtime as fr
     import navsim.fmu.variables as fv
-    from navsim import signals
     from navsim.fmu.build import build_fmu
     from navsim.fmu.master import FmuInstance
+
+    from navsim import signals
     from navsim.simulator import Simulator
 
     extra = signals.Signal("odometer_copy", "odometer", (1,), "m", "A new per-step output", "odometer.copy_m",
