@@ -30,6 +30,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -82,15 +83,16 @@ class VelocityFix:
     ok: np.ndarray
 
 
-def _as_epochs(sat, meas, valid):
-    sat = np.asarray(sat, dtype=float)
+def _as_epochs(sat_in: ArrayLike, meas_in: ArrayLike,
+               valid_in: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    sat: np.ndarray = np.asarray(sat_in, dtype=float)
     single = sat.ndim == 2
     if single:
         sat = sat[None]
     if sat.ndim != 3 or sat.shape[-1] != 3:
         raise ConfigError("sat_pos_e", "shape (k, m, 3) or (m, 3)", sat.shape)
-    meas = np.asarray(meas, dtype=float).reshape(sat.shape[:2])
-    valid = np.asarray(valid, dtype=bool).reshape(sat.shape[:2])
+    meas = np.asarray(meas_in, dtype=float).reshape(sat.shape[:2])
+    valid = np.asarray(valid_in, dtype=bool).reshape(sat.shape[:2])
     valid = valid & np.isfinite(meas) & np.all(np.isfinite(sat), axis=-1)
     return sat, np.where(valid, meas, 0.0), valid, single
 
@@ -99,7 +101,8 @@ _EYE4 = np.eye(4)
 _EYE4.setflags(write=False)
 
 
-def _normal_solve(h, w, residual):
+def _normal_solve(h: np.ndarray, w: np.ndarray,
+                  residual: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Batched weighted normal equations; returns dx (k,4), inverse (k,4,4), rank_ok (k,).
 
     A singular epoch gets the identity in place of its normal matrix and a zero right-hand
@@ -205,7 +208,7 @@ def velocity_fix(sat_pos_e: ArrayLike, sat_vel_e: ArrayLike, pseudorange_rate_mp
     k = sat.shape[0]
     position = np.broadcast_to(np.asarray(position_e, dtype=float).reshape(-1, 3), (k, 3))
     finite = np.all(np.isfinite(vel), axis=-1) & np.all(np.isfinite(position), axis=1)[:, None]
-    valid = valid & finite
+    valid = cast(np.ndarray, valid & finite)
     los = sat - position[:, None, :]
     dist = np.linalg.norm(los, axis=-1)
     dist = np.where(valid & (dist > 0.0), dist, 1.0)

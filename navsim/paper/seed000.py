@@ -75,10 +75,12 @@ References
 from __future__ import annotations
 
 import os
-from typing import Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from ..types import FloatOrArray
 
 from ..rotations import quat_from_rotvec, quat_multiply, quat_to_rotvec
 from ..strapdown import CONING, POSITION, SCULLING
@@ -147,14 +149,16 @@ _X_VALUES = np.array([0.8, 0.6, 0.45, 0.35, 0.25, 0.18])
 
 
 # -------------------------------------------------------------------------- helpers
-def _coning_inputs(name: str, motion: Motion, t_start, dt):
+def _coning_inputs(name: str, motion: Motion, t_start: FloatOrArray,
+                   dt: float) -> tuple[np.ndarray | None, np.ndarray | None]:
     source, count = CONING_INPUTS[name]
     if source == "sub":
         return motion.omega.sub_increments(t_start, dt, count), None
     return None, motion.omega.multiple_integrals(t_start, dt, max(count, 1))
 
 
-def _sculling_inputs(name: str, motion: Motion, t_start, dt):
+def _sculling_inputs(name: str, motion: Motion, t_start: FloatOrArray, dt: float) -> tuple[
+        np.ndarray | None, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     spec = SCULLING_INPUTS[name]
     if "sub" in spec:
         th, dv = motion.sub_increments(t_start, dt, spec["sub"])
@@ -239,11 +243,11 @@ def general_motion() -> Motion:
     return Motion(omega=omega, accel=accel)
 
 
-def _cross(a, b):
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.cross(a, b)
 
 
-def _printed_local_error(ref: str, motion: Motion, t0, dt: float) -> np.ndarray:
+def _printed_local_error(ref: str, motion: Motion, t0: FloatOrArray, dt: float) -> np.ndarray:
     """The printed local-error expressions evaluated with the motion's derivatives at t0."""
     w = [motion.omega.derivative(t0, k) for k in range(4)]  # A, B, C, D of omega
     a = [motion.accel.derivative(t0, k) for k in range(4)]
@@ -351,7 +355,7 @@ def _local_error_study() -> list[dict]:
 
 
 # ---------------------------------------------------------------------------- position
-def _rot_x(angle):
+def _rot_x(angle: np.ndarray) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     zero, one = np.zeros_like(angle), np.ones_like(angle)
     return np.stack(
@@ -374,7 +378,7 @@ def position_motion(rotating: bool) -> Motion:
     return Motion(omega=omega, accel=accel)
 
 
-def position_errors(motion: Motion, steps: ArrayLike, duration: float = 2.0, methods: Sequence[str] | None = None) -> dict[str,
+def position_errors(motion: Motion, steps: Iterable[float], duration: float = 2.0, methods: Sequence[str] | None = None) -> dict[str,
                     np.ndarray]:
     """Norm of the final position error after ``duration`` for each method and step.
 
@@ -384,7 +388,7 @@ def position_errors(motion: Motion, steps: ArrayLike, duration: float = 2.0, met
     """
     methods = list(POSITION) if methods is None else methods
     velocity0 = np.array([1.0, 20.0, 0.0])
-    out = {m: [] for m in methods}
+    out: dict[str, list[float]] = {m: [] for m in methods}
     x_gl, w_gl = np.polynomial.legendre.leggauss(24)
     for dt in steps:
         k = int(round(duration / dt))
@@ -563,7 +567,8 @@ def run(plot_dir: str | None = None, quick: bool = False) -> list[dict]:
     return rows
 
 
-def _plots(plot_dir, coning, sculling, local, steps, position, pseudo) -> None:
+def _plots(plot_dir: str, coning: dict[str, np.ndarray], sculling: dict[str, np.ndarray], local: list[dict],
+           steps: np.ndarray, position: dict[bool, dict[str, np.ndarray]], pseudo: dict) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -571,7 +576,7 @@ def _plots(plot_dir, coning, sculling, local, steps, position, pseudo) -> None:
 
     os.makedirs(plot_dir, exist_ok=True)
 
-    def save(fig, name):
+    def save(fig: Any, name: str) -> None:
         fig.tight_layout()
         from ..io import save_figure
 

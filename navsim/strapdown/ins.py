@@ -91,10 +91,12 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..earth import WGS84, EarthModel
 from ..errors import ConfigError
@@ -139,7 +141,7 @@ Method = str | Callable | None
 
 
 # ------------------------------------------------------------------------------ inputs
-def _as_steps(name: str, value, single: bool) -> np.ndarray | None:
+def _as_steps(name: str, value: ArrayLike | None, single: bool) -> np.ndarray | None:
     if value is None:
         return None
     arr = np.asarray(value, dtype=float)
@@ -167,7 +169,8 @@ def _available(inputs: dict[str, np.ndarray | None], tokens: set[str]) -> bool:
 
 
 def resolve_methods(
-    coning: Method, sculling: Method, position: Method, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None
+    coning: Method, sculling: Method, position: Method, dtheta_sub: np.ndarray | None = None,
+    dv_sub: np.ndarray | None = None, dtheta_r: np.ndarray | None = None, dv_r: np.ndarray | None = None
 ) -> tuple[Method, Method, Method]:
     """Fill ``None`` method names with the most accurate registered method the inputs allow.
 
@@ -195,6 +198,8 @@ def _lookup(kind: str, method: Method) -> Callable:
         return method
     registry = {"coning": CONING, "sculling": SCULLING, "position": POSITION}[kind]
     try:
+        if not isinstance(method, str):
+            raise TypeError(method)
         return registry[method]
     except (KeyError, TypeError):
         raise ConfigError(kind, f"a callable or one of {sorted(registry)}", method) from None
@@ -246,8 +251,9 @@ class BodyTerms:
         return quat_from_rotvec(self.rotvec_body)
 
 
-def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float = 0.01, coning: Method = None,
-               sculling: Method = None, position: Method = None) -> BodyTerms:
+def body_terms(dtheta_sub: np.ndarray | None = None, dv_sub: np.ndarray | None = None,
+               dtheta_r: np.ndarray | None = None, dv_r: np.ndarray | None = None, dt: float = 0.01,
+               coning: Method = None, sculling: Method = None, position: Method = None) -> BodyTerms:
     """The body-frame terms :func:`integrate` uses, for all n steps at once.
 
     Parameters are those of :func:`integrate` (increment arrays of shape (n, m, 3) or
@@ -283,14 +289,17 @@ def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float
     return BodyTerms(phi, dv_b, ds_b, rule, np.asarray(dth_raw, dtype=float), np.asarray(dv_raw, dtype=float))
 
 
-def _body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position):
+def _body_terms(dtheta_sub: np.ndarray | None, dv_sub: np.ndarray | None, dtheta_r: np.ndarray | None,
+                dv_r: np.ndarray | None, dt: float, coning: Method, sculling: Method,
+                position: Method) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, str | None]:
     """Vectorised body-frame terms for all steps: q(Phi) (n, 4), dV_b (n, 3), dS_b or None, rule."""
     terms = body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, dt, coning, sculling, position)
     return terms.quat_body, terms.dv_body, terms.ds_body, terms.rule
 
 
 # ------------------------------------------------------------------------------ the loop
-def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
+def _run_sequential(state: InsState, quat_body: np.ndarray, dv_body: np.ndarray, ds_body: np.ndarray | None,
+                    rule: str | None, dt: float, earth: EarthModel) -> InsSolution:
     """Sequential predictor-corrector loop on Python floats (see the module notes)."""
     out_pos, out_vel, out_q, compensation = sequential_rows(
         state.lat, state.lon, state.h, state.velocity_n.tolist(), state.quat_nb.tolist(), state.compensation,
@@ -299,7 +308,8 @@ def _run_sequential(state: InsState, quat_body, dv_body, ds_body, rule: str | No
     return InsSolution(pos[:, 0], pos[:, 1], pos[:, 2], np.array(out_vel), np.array(out_q), compensation)
 
 
-def _run_compiled(state: InsState, quat_body, dv_body, ds_body, rule: str | None, dt: float, earth: EarthModel):
+def _run_compiled(state: InsState, quat_body: np.ndarray, dv_body: np.ndarray, ds_body: np.ndarray | None,
+                  rule: str | None, dt: float, earth: EarthModel) -> InsSolution:
     """The sequential loop compiled (:mod:`navsim.strapdown.compiled`)."""
     from . import compiled
 
@@ -314,8 +324,12 @@ def _run_compiled(state: InsState, quat_body, dv_body, ds_body, rule: str | None
     return InsSolution(pos[0], pos[1], pos[2], vel, quat, tuple(comp.tolist()))  # rows: lat, lon, h
 
 
-def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compensation, quat_body, dv_body,
-                    ds_body, rule: str | None, dt: float, earth: EarthModel):
+def sequential_rows(lat: float, lon: float, h: float, velocity_n: Sequence[float], quat_nb: Sequence[float],
+                    compensation: Sequence[float], quat_body: Sequence[Sequence[float]],
+                    dv_body: Sequence[Sequence[float]], ds_body: Sequence[Sequence[float]] | None,
+                    rule: str | None, dt: float, earth: EarthModel) -> tuple[
+        list[tuple[float, float, float]], list[tuple[float, float, float]],
+        list[tuple[float, float, float, float]], tuple[float, float, float]]:
     """The sequential loop of :func:`integrate_body_terms` on Python sequences.
 
     ``velocity_n`` (3,), ``quat_nb`` (4,), ``compensation`` (3,) of the start state (see
@@ -335,7 +349,8 @@ def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compe
     m_som = rate**2 * a**2 * a * (1.0 - f) / earth.gm
     rate2 = rate * rate
 
-    def evaluate(lat, h, ve, vn, vu):
+    def evaluate(lat: float, h: float, ve: float, vn: float, vu: float) -> tuple[
+            float, float, float, float, float, float, float, float, float]:
         # radii, rates and gc = g - (2 w_ie + w_en) x v at one point; mirrors navsim.earth
         sl, cl = sin(lat), cos(lat)
         if flat:
@@ -365,7 +380,7 @@ def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compe
     ve, vn, vu = (float(x) for x in velocity_n)
     q0, q1, q2, q3 = (float(x) for x in quat_nb)
     exact = ds_body is not None
-    ds_list = ds_body if exact else [None] * len(dv_body)
+    ds_list: Sequence[Any] = ds_body if ds_body is not None else [None] * len(dv_body)
     trapezoid = rule == "trapezoid"
     half_dt, dt2_6, third = 0.5 * dt, dt * dt / 6.0, 1.0 / 3.0
     inv_dt = 1.0 / dt
@@ -462,7 +477,7 @@ def sequential_rows(lat: float, lon: float, h: float, velocity_n, quat_nb, compe
 _run = _run_sequential
 
 
-def _check_method(method: str, window) -> None:
+def _check_method(method: str, window: int | None) -> None:
     if method not in METHODS:
         raise ConfigError("method", f"one of {METHODS}", method)
     if window is not None and (isinstance(window, bool) or int(window) != window or window < 1):
@@ -471,9 +486,9 @@ def _check_method(method: str, window) -> None:
 
 def integrate_body_terms(
     initial_state: InsState,
-    quat_body,
-    dv_body,
-    ds_body=None,
+    quat_body: ArrayLike,
+    dv_body: ArrayLike,
+    ds_body: ArrayLike | None = None,
     rule: str | None = None,
     dt: float = 0.01,
     earth: EarthModel = WGS84,
@@ -549,10 +564,10 @@ def integrate_body_terms(
 
 def integrate(
     initial_state: InsState,
-    dtheta_sub=None,
-    dv_sub=None,
-    dtheta_r=None,
-    dv_r=None,
+    dtheta_sub: ArrayLike | None = None,
+    dv_sub: ArrayLike | None = None,
+    dtheta_r: ArrayLike | None = None,
+    dv_r: ArrayLike | None = None,
     dt: float = 0.01,
     earth: EarthModel = WGS84,
     coning: Method = None,
@@ -626,16 +641,17 @@ def integrate(
     if any(x.shape[0] != n for x in present):
         raise ConfigError("increments", "arrays with the same number of steps n", [x.shape for x in present])
     _check_method(method, window)
-    quat_body, dv_body, ds_body, rule = _body_terms(*arrays, dt, coning, sculling, position)
+    quat_body, dv_body, ds_body, rule = _body_terms(arrays[0], arrays[1], arrays[2], arrays[3], dt, coning, sculling,
+                                                    position)
     return integrate_body_terms(initial_state, quat_body, dv_body, ds_body, rule, dt, earth, method, window)
 
 
 def ins_step(
     state: InsState,
-    dtheta_sub=None,
-    dv_sub=None,
-    dtheta_r=None,
-    dv_r=None,
+    dtheta_sub: ArrayLike | None = None,
+    dv_sub: ArrayLike | None = None,
+    dtheta_r: ArrayLike | None = None,
+    dv_r: ArrayLike | None = None,
     dt: float = 0.01,
     earth: EarthModel = WGS84,
     coning: Method = None,
@@ -652,4 +668,5 @@ def ins_step(
     for name, arr in zip(("dtheta_sub", "dv_sub", "dtheta_r", "dv_r"), arrays):
         if arr is not None and arr.shape[0] != 1:
             raise ConfigError(name, "the increments of one step, shape (m, 3)", arr.shape)
-    return integrate(state, *arrays, dt=dt, earth=earth, coning=coning, sculling=sculling, position=position).final
+    return integrate(state, arrays[0], arrays[1], arrays[2], arrays[3], dt=dt, earth=earth, coning=coning,
+                     sculling=sculling, position=position).final

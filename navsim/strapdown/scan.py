@@ -71,11 +71,15 @@ References
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from ..earth import EarthModel
-from .state import InsSolution
+from .state import InsSolution, InsState
+
+# The helpers below take quaternion / matrix components as tuples of floats or of arrays
+# (the same expressions serve one step and a whole window): typed Any.
 
 __all__ = ["DEFAULT_WINDOW", "prefix_quat_products", "integrate_scan"]
 
@@ -86,7 +90,7 @@ _EPS = np.finfo(float).eps
 
 
 # ----------------------------------------------------------------------------- quaternions
-def _qmul(a, b):
+def _qmul(a: Any, b: Any) -> tuple[Any, Any, Any, Any]:
     """Hamilton product of quaternion component tuples/arrays (scalar first), row-wise."""
     a0, a1, a2, a3 = a
     b0, b1, b2, b3 = b
@@ -159,7 +163,7 @@ class _Earth:
         self.m_som = self.rate**2 * self.a**2 * self.a * (1.0 - self.f) / earth.gm
         self.rate2 = self.rate * self.rate
 
-    def evaluate(self, lat, h, ve, vn, vu):
+    def evaluate(self, lat: Any, h: Any, ve: Any, vn: Any, vu: Any) -> tuple[Any, ...]:
         """Radii, rates and gc = g - (2 w_ie + w_en) x v (mirrors ins._run.evaluate)."""
         a, e2 = self.a, self.e2
         sl, cl = np.sin(lat), np.cos(lat)
@@ -189,7 +193,7 @@ class _Earth:
         return rnh, reh, cl, wen_e, wie_n + wen_n, wie_u + wen_u, gce, gcn, gcu
 
 
-def _mat(q0, q1, q2, q3):
+def _mat(q0: Any, q1: Any, q2: Any, q3: Any) -> tuple[Any, ...]:
     """Rows of mat_nb from quaternion components (as in ins._run)."""
     s0, s1, s2, s3 = q0 * q0, q1 * q1, q2 * q2, q3 * q3
     c00 = s0 + s1 - s2 - s3
@@ -203,12 +207,12 @@ def _mat(q0, q1, q2, q3):
             2 * (p13 - p02), 2 * (p23 + p01), c22)
 
 
-def _rotate(c, x, y, z):
+def _rotate(c: tuple[Any, ...], x: Any, y: Any, z: Any) -> tuple[Any, Any, Any]:
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = c
     return (c00 * x + c01 * y + c02 * z, c10 * x + c11 * y + c12 * z, c20 * x + c21 * y + c22 * z)
 
 
-def _zrot(z, v):
+def _zrot(z: Any, v: Any) -> tuple[Any, Any, Any]:
     """C(Z) v for a unit quaternion Z near 1: v + w t + z x t, t = 2 z x v."""
     w, x, y, zc = z
     vx, vy, vz = v
@@ -216,7 +220,7 @@ def _zrot(z, v):
     return (vx + w * tx + (y * tz - zc * ty), vy + w * ty + (zc * tx - x * tz), vz + w * tz + (x * ty - y * tx))
 
 
-def _cumsum_from(start, increments):
+def _cumsum_from(start: float, increments: np.ndarray) -> np.ndarray:
     """[start, start + d0, start + d0 + d1, ...] (n + 1 values)."""
     out = np.empty(len(increments) + 1)
     out[0] = 0.0
@@ -227,7 +231,8 @@ def _cumsum_from(start, increments):
 
 
 # ----------------------------------------------------------------------------- one window
-def _solve_window(start, qb, dvb, dsb, rule, dt, E: _Earth, max_iterations):
+def _solve_window(start: tuple[Any, ...], qb: np.ndarray, dvb: np.ndarray, dsb: np.ndarray | None, rule: str | None,
+                  dt: float, E: _Earth, max_iterations: int) -> tuple[Any, ...] | None:
     """Solve N steps from ``start`` = (lat, lon, h, comp(3), v(3), q(4)).
 
     Returns (lat, lon, h, ve, vn, vu, q (4, N+1), comp (3,), iterations) or None if the
@@ -243,7 +248,7 @@ def _solve_window(start, qb, dvb, dsb, rule, dt, E: _Earth, max_iterations):
     seq = np.empty((4, n + 1))
     seq[:, 0] = qs
     seq[:, 1:] = qb
-    P = _prefix(seq)
+    P: Any = _prefix(seq)  # (4, n + 1), then a tuple of its rows
     s = 1.0 / np.sqrt(P[0] * P[0] + P[1] * P[1] + P[2] * P[2] + P[3] * P[3])
     P *= s
     P = (P[0], P[1], P[2], P[3])
@@ -260,7 +265,7 @@ def _solve_window(start, qb, dvb, dsb, rule, dt, E: _Earth, max_iterations):
     # u = C(q) dV = C(Z) C(P) dV: C(P) dV (and C(P) dS) once per window
     c = _mat(*(x[:n] for x in P))
     u_body = _rotate(c, dx, dy, dz)
-    s_body = _rotate(c, *dsb) if exact else None
+    s_body = _rotate(c, *dsb) if dsb is not None else None  # (dsb is not None: exact)
     u = _zrot((zw[:n], zx[:n], zy[:n], zz[:n]), u_body)
     ve, vn, vu = _cumsum_from(ve0, u[0] + ge0 * dt), _cumsum_from(vn0, u[1] + gn0 * dt), _cumsum_from(vu0, u[2] + gu0 * dt)
     y_lat = _cumsum_from(-k_lat, vn[:n] * (dt / rnh0))
@@ -343,8 +348,9 @@ def _solve_window(start, qb, dvb, dsb, rule, dt, E: _Earth, max_iterations):
     return None
 
 
-def integrate_scan(state, quat_body, dv_body, ds_body, rule, dt: float, earth: EarthModel,
-                   window: int = DEFAULT_WINDOW, max_iterations: int = 12, stats: dict | None = None):
+def integrate_scan(state: InsState, quat_body: np.ndarray, dv_body: np.ndarray, ds_body: np.ndarray | None,
+                   rule: str | None, dt: float, earth: EarthModel, window: int = DEFAULT_WINDOW,
+                   max_iterations: int = 12, stats: dict | None = None) -> InsSolution:
     """Free-inertial navigation from precomputed body terms without a per-step loop.
 
     Parameters
@@ -413,5 +419,5 @@ def integrate_scan(state, quat_body, dv_body, ds_body, rule, dt: float, earth: E
                    (float(ve[-1]), float(vn[-1]), float(vu[-1])), tuple(float(x) for x in q[:, -1]))
     if stats is not None:
         stats.update(info)
-    comp = current[3] if n else tuple(state.compensation)
-    return InsSolution(lat, lon, h, vel, quat, comp)
+    final_comp: Any = current[3] if n else tuple(state.compensation)  # 3 floats
+    return InsSolution(lat, lon, h, vel, quat, final_comp)

@@ -8,14 +8,14 @@ recursions (:func:`first_order_recursion`). The model and its stated approximati
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ...errors import ConfigError
 from . import kernel as _imu_kernel
-from .error_model import ImuErrorModel, level_lsb
+from .error_model import ImuErrorModel, SensorErrors, level_lsb
 from .integrals import MAX_ORDER, check_h, harmonic_multiple_integrals, unit_noise_factor
 from .state import ImuOutput, ImuState
 
@@ -97,7 +97,8 @@ def _quantize(
     return out, acc, count
 
 
-def _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b):
+def _check_truth_inputs(t_start: ArrayLike, dtheta_r: ArrayLike, dv_r: ArrayLike, omega_b: ArrayLike,
+                        f_b: ArrayLike) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
     dtheta_r = np.asarray(dtheta_r, dtype=float)
     dv_r = np.asarray(dv_r, dtype=float)
     if dtheta_r.ndim != 3 or dtheta_r.shape[-1] != 3 or not 1 <= dtheta_r.shape[1] <= MAX_ORDER:
@@ -117,8 +118,11 @@ def _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b):
     return t_start, dtheta_r, dv_r, omega_b, f_b
 
 
-def _kernel_sensor(kern, s_idx, sensor, out, rate, z, order, members, turn_on, gm_start, sigma_gm, rrw_start,
-                   rrw_gain, varying, h_r_fact, t_start, t_end, h, noise_factor, scale_density, dest=None):
+def _kernel_sensor(kern: Callable[..., Any], s_idx: int, sensor: SensorErrors, out: NDArray, rate: NDArray,
+                   z: NDArray, order: int, members: int, turn_on: NDArray, gm_start: NDArray, sigma_gm: NDArray,
+                   rrw_start: NDArray, rrw_gain: NDArray, varying: NDArray, h_r_fact: NDArray, t_start: NDArray,
+                   t_end: NDArray, h: float, noise_factor: NDArray, scale_density: NDArray,
+                   dest: tuple[NDArray, NDArray] | None = None) -> tuple[NDArray, NDArray]:
     """One sensor's outputs (B, n, R, 3), (B, n, 3) with the compiled white-noise pass.
 
     ``out`` (n, R, 3) and ``rate`` (n, 3) are the noise-free values shared by the members
@@ -308,33 +312,33 @@ def apply_imu_errors_batch(
     count_new = np.stack([s.quant_count for s in states])
     t_end = t_start + h
     kern = _imu_kernel.kernel() if USE_KERNEL else None
-    dest_output = out  # (the name ``out`` is reused below)
+    dest_output = out
     dest_all = None if out is None else ((out.dtheta_r, out.rate_b), (out.dv_r, out.accel_b))
-    outputs = []
+    outputs: list[tuple[np.ndarray, np.ndarray]] = []
     for s_idx, (sensor, true_r, true_rate) in enumerate(
         ((model.gyro, dtheta_r, omega_b), (model.accel, dv_r, f_b))
     ):
         # Scale factor and misalignment: linear, so exact on every order.
         transform = np.eye(3) + np.diag(sensor.scale_factor) + sensor.misalignment
         if np.array_equal(transform, np.eye(3)):
-            out, rate = true_r, true_rate
+            out_r, rate = true_r, true_rate
         else:
-            out, rate = _mat3_apply(transform, true_r), _mat3_apply(transform, true_rate)
+            out_r, rate = _mat3_apply(transform, true_r), _mat3_apply(transform, true_rate)
 
         # Gyro g-sensitivity on the true specific force (exact on every order).
         if s_idx == 0 and np.any(model.g_sensitivity):
-            out = out + _mat3_apply(model.g_sensitivity, dv_r)
+            out_r = out_r + _mat3_apply(model.g_sensitivity, dv_r)
             rate = rate + _mat3_apply(model.g_sensitivity, f_b)
         if kern is not None and np.any(density[s_idx]) and not lsb_levels[s_idx, 0] > 0.0:
             # compiled white-noise pass (navsim.sensors.imu.kernel): the same terms in the
             # same order as below, without repeating the shared values per member
             dest = None if dest_all is None else dest_all[s_idx]
-            outputs.append(_kernel_sensor(kern, s_idx, sensor, out, rate, z, order, members, turn_on, gm_start,
+            outputs.append(_kernel_sensor(kern, s_idx, sensor, out_r, rate, z, order, members, turn_on, gm_start,
                                           sigma_gm, rrw_start, rrw_gain, varying, h_r_fact, t_start, t_end, h,
                                           noise_factor, noise_scale[:, None] * density[s_idx][None, :], dest))
             continue
-        # from here on the members differ; ``out`` in the layout (R, B, n, 3)
-        out = np.repeat(out.transpose(1, 0, 2)[:, None], members, axis=1)
+        # from here on the members differ; ``out_r`` in the layout (R, B, n, 3)
+        out_r = np.repeat(out_r.transpose(1, 0, 2)[:, None], members, axis=1)
         rate = np.repeat(rate[None], members, axis=0)  # (B, n, 3)
 
         # Biases: constant + turn-on + Gauss-Markov + rate random walk (members without
@@ -343,7 +347,7 @@ def apply_imu_errors_batch(
         if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
                 or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
             bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
-            out += bias[None] * h_r_fact[:, None, None, None]  # b h^r / r!
+            out_r += bias[None] * h_r_fact[:, None, None, None]  # b h^r / r!
             rate += bias
 
         # Vibration harmonics: closed-form multiple integrals (seed 000, section 6).
@@ -351,7 +355,7 @@ def apply_imu_errors_batch(
             integrals = harmonic_multiple_integrals(
                 1.0, harm.frequency_hz, harm.phase_rad, t_start, h, order
             )
-            out += integrals.T[:, None, :, None] * harm.amplitude[None, None, None, :]
+            out_r += integrals.T[:, None, :, None] * harm.amplitude[None, None, None, :]
             wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
             rate += wave[:, None] * harm.amplitude[None, :]
 
@@ -359,10 +363,10 @@ def apply_imu_errors_batch(
         if np.any(density[s_idx]):
             for i in range(order):  # lower-triangular Cholesky factor times the draws
                 unit = noise_factor[i, 0] * slot(s_idx, 0)  # slots 0..R-1: white
-                for q in range(1, i + 1):
-                    unit += noise_factor[i, q] * slot(s_idx, q)
+                for p in range(1, i + 1):
+                    unit += noise_factor[i, p] * slot(s_idx, p)
                 noise_i = unit * (noise_scale[i] * density[s_idx])
-                out[i] += noise_i
+                out_r[i] += noise_i
                 if i == 0:
                     rate += noise_i / h  # sample average: sigma = sqrt(PSD / h)
 
@@ -370,27 +374,28 @@ def apply_imu_errors_batch(
         # side as channels: the running sums are per column).
         if lsb_levels[s_idx, 0] > 0.0:
             width = 3 * (order + 1)
-            values = np.concatenate((out, rate[None]), axis=0).transpose(2, 1, 0, 3)  # (n, B, R + 1, 3)
-            q, acc, count = _quantize(
+            values = np.concatenate((out_r, rate[None]), axis=0).transpose(2, 1, 0, 3)  # (n, B, R + 1, 3)
+            quant, acc, count = _quantize(
                 values.reshape(n, members * width),
                 np.tile(np.repeat(lsb_levels[s_idx], 3), members),
                 acc_new[:, s_idx, rows].reshape(-1),
                 count_new[:, s_idx, rows].reshape(-1),
                 index,
             )
-            q = q.reshape(n, members, order + 1, 3)
-            out, rate = q[:, :, :order].transpose(1, 0, 2, 3), q[:, :, order].transpose(1, 0, 2)
+            quant = quant.reshape(n, members, order + 1, 3)
+            out_r, rate = quant[:, :, :order].transpose(1, 0, 2, 3), quant[:, :, order].transpose(1, 0, 2)
             acc_new[:, s_idx, rows] = acc.reshape(members, order + 1, 3)
             count_new[:, s_idx, rows] = count.reshape(members, order + 1, 3)
         else:
-            out = out.transpose(1, 2, 0, 3)  # (B, n, R, 3)
-        outputs.append((out, rate))
+            out_r = out_r.transpose(1, 2, 0, 3)  # (B, n, R, 3)
+        outputs.append((out_r, rate))
 
     new_states = ImuState._batch(index + n, [s.turn_on_bias for s in states], gm_next[:, -1], rrw_next[:, -1],
                                  acc_new, count_new)
     if dest_all is None:
         return ImuOutput(dtheta_r=outputs[0][0], dv_r=outputs[1][0], rate_b=outputs[0][1],
                          accel_b=outputs[1][1]), new_states
+    assert dest_output is not None  # dest_all is built from it
     for (values, rate), (dest_r, dest_rate) in zip(outputs, dest_all):
         if values is not dest_r:  # the kernel wrote in place
             dest_r[...] = values

@@ -54,6 +54,11 @@ PRESET_NAMES = ("ideal", "paper-2012", "consumer-mems", "tactical", "navigation"
 _GROVES_DT = 0.01
 
 
+def _axes(value: float) -> NDArray[np.float64]:
+    """One value on the three axes (what :class:`SensorErrors` makes of a scalar)."""
+    return np.full(3, value)
+
+
 def _split_m(matrix_ppm: Sequence[Sequence[float]]) -> tuple[NDArray, NDArray]:
     """Groves' combined scale-factor / cross-coupling matrix -> (scale, misalignment)."""
     m = np.array(matrix_ppm, dtype=float) * _PPM
@@ -102,8 +107,8 @@ def imu_preset(name: str) -> ImuErrorModel:
         return ImuErrorModel(name="ideal")
     if name == "paper-2012":
         return ImuErrorModel(
-            gyro=SensorErrors(white_noise_density=0.002 * _DEG_PER_SQRT_HOUR),
-            accel=SensorErrors(white_noise_density=1.0e-5),  # (1e-5 m/s^2)^2 read as PSD
+            gyro=SensorErrors(white_noise_density=_axes(0.002 * _DEG_PER_SQRT_HOUR)),
+            accel=SensorErrors(white_noise_density=_axes(1.0e-5)),  # (1e-5 m/s^2)^2 read as PSD
             name="paper-2012",
         )
     if name == "consumer-mems":
@@ -112,18 +117,18 @@ def imu_preset(name: str) -> ImuErrorModel:
         return ImuErrorModel(
             gyro=SensorErrors(
                 bias=np.array([-180.0, 260.0, -160.0]) * _DEG_PER_HOUR,
-                bias_instability_sigma=200.0 * _DEG_PER_HOUR,
-                bias_correlation_time_s=3600.0,
-                white_noise_density=0.2 * _DEG_PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(200.0 * _DEG_PER_HOUR),
+                bias_correlation_time_s=_axes(3600.0),
+                white_noise_density=_axes(0.2 * _DEG_PER_SQRT_HOUR),
                 scale_factor=sg,
                 misalignment=mg,
                 quantization_lsb=2.0e-3 * _GROVES_DT,
             ),
             accel=SensorErrors(
                 bias=np.array([9000.0, -13000.0, 8000.0]) * _MICRO_G,
-                bias_instability_sigma=1000.0 * _MGAL,
-                bias_correlation_time_s=3600.0,
-                white_noise_density=0.2 * _PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(1000.0 * _MGAL),
+                bias_correlation_time_s=_axes(3600.0),
+                white_noise_density=_axes(0.2 * _PER_SQRT_HOUR),
                 scale_factor=sa,
                 misalignment=ma,
                 quantization_lsb=1.0e-1 * _GROVES_DT,
@@ -140,18 +145,18 @@ def imu_preset(name: str) -> ImuErrorModel:
         return ImuErrorModel(
             gyro=SensorErrors(
                 bias=np.array([-9.0, 13.0, -8.0]) * _DEG_PER_HOUR,
-                bias_instability_sigma=25.0 * _DEG_PER_HOUR,
-                bias_correlation_time_s=3600.0,
-                white_noise_density=0.1 * _DEG_PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(25.0 * _DEG_PER_HOUR),
+                bias_correlation_time_s=_axes(3600.0),
+                white_noise_density=_axes(0.1 * _DEG_PER_SQRT_HOUR),
                 scale_factor=sg,
                 misalignment=mg,
                 quantization_lsb=2.0e-4 * _GROVES_DT,
             ),
             accel=SensorErrors(
                 bias=np.array([900.0, -1300.0, 800.0]) * _MICRO_G,
-                bias_instability_sigma=200.0 * _MGAL,
-                bias_correlation_time_s=3600.0,
-                white_noise_density=0.1 * _PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(200.0 * _MGAL),
+                bias_correlation_time_s=_axes(3600.0),
+                white_noise_density=_axes(0.1 * _PER_SQRT_HOUR),
                 scale_factor=sa,
                 misalignment=ma,
                 quantization_lsb=1.0e-2 * _GROVES_DT,
@@ -166,18 +171,18 @@ def imu_preset(name: str) -> ImuErrorModel:
         return ImuErrorModel(
             gyro=SensorErrors(
                 bias=np.array([-0.0009, 0.0013, -0.0008]) * _DEG_PER_HOUR,
-                bias_instability_sigma=0.027 * _DEG_PER_HOUR,
-                bias_correlation_time_s=4.0 * 3600.0,
-                white_noise_density=0.003 * _DEG_PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(0.027 * _DEG_PER_HOUR),
+                bias_correlation_time_s=_axes(4.0 * 3600.0),
+                white_noise_density=_axes(0.003 * _DEG_PER_SQRT_HOUR),
                 scale_factor=sg,
                 misalignment=mg,
                 quantization_lsb=1.0e-6 * _GROVES_DT,
             ),
             accel=SensorErrors(
                 bias=np.array([30.0, -45.0, 26.0]) * _MICRO_G,
-                bias_instability_sigma=15.0 * _MGAL,
-                bias_correlation_time_s=4.0 * 3600.0,
-                white_noise_density=0.03 * _PER_SQRT_HOUR,
+                bias_instability_sigma=_axes(15.0 * _MGAL),
+                bias_correlation_time_s=_axes(4.0 * 3600.0),
+                white_noise_density=_axes(0.03 * _PER_SQRT_HOUR),
                 scale_factor=sa,
                 misalignment=ma,
                 quantization_lsb=5.0e-5 * _GROVES_DT,
