@@ -103,6 +103,7 @@ import math
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -112,6 +113,10 @@ from .motion import ExternalMotion, TrueState, body_kinematics, true_state, trut
 from .rotations import mat_nb_from_hpr
 from .sensors.imu import multiple_integral_rule
 from .threads import limited
+
+if TYPE_CHECKING:  # type hints only
+    from .motion import Oscillation, SpeedProfile
+    from .track import Track
 
 __all__ = ["IdealSamples", "TruthGenerator"]
 
@@ -191,7 +196,7 @@ class TruthGenerator:
         breakpoint falls (within 1e-9 samples) on a sample boundary.
     """
 
-    def __init__(self, track, profile, oscillations, h: float, orders: int, n_nodes: int,
+    def __init__(self, track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], h: float, orders: int, n_nodes: int,
                  t_end: float, block_s: float = 1.0, cheb_nodes: int = 32, tol: float = 1e-13,
                  noise_tol: float = 1e-10, split_at_breakpoints: bool = True):
         self.track, self.profile, self.oscillations = track, profile, tuple(oscillations)
@@ -219,7 +224,7 @@ class TruthGenerator:
         self._tau, self._coef_from_values, self._end_matrix, self._int_matrix = self._run_matrices(
             self.block, self.cheb_nodes)
 
-    def _run_matrices(self, m: int, n: int):
+    def _run_matrices(self, m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Node offsets (s), values -> coefficients, values -> sample-end values and
         values -> multiple integrals, for a run of m samples fitted with n nodes."""
         return _run_matrices(m, n, self.orders, self.h)
@@ -274,7 +279,7 @@ class TruthGenerator:
         beta = np.where(np.abs(beta - near) <= _SNAP, near, beta)
         return np.unique(beta)
 
-    def _inside(self, lo, hi):
+    def _inside(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Index range [a, b) of the breakpoints strictly inside (lo, hi) (sample units)."""
         bp = self.breakpoints
         return np.searchsorted(bp, lo, side="right"), np.searchsorted(bp, hi, side="left")
@@ -431,11 +436,13 @@ class TruthGenerator:
         b, h, R = self.block, self.h, self.orders
         bp = self.breakpoints
         a, e = self._inside(ks * b, (ks + 1) * b)
-        run_start, run_len, straddlers = [], [], []
+        run_start: list[int] = []
+        run_len: list[int] = []
+        straddlers: list[int] = []
         for k, lo, hi in zip(ks.tolist(), a.tolist(), e.tolist()):
             base = k * b
             edges = {0, b}
-            cut_samples = set()
+            cut_samples: set[int] = set()
             for beta in (bp[lo:hi] - base).tolist():
                 j = math.floor(beta)
                 if beta == j:
@@ -455,8 +462,8 @@ class TruthGenerator:
         ends = np.zeros((n_rows, _N_CHANNELS))
         integ = np.zeros((n_rows, R, 6))
         fitted = np.zeros(n_rows, dtype=bool)
-        direct_runs = []
-        pending = []  # (start, m, n_nodes)
+        direct_runs: list[tuple[int, int, int]] = []
+        pending: list[tuple[int, int, int]] = []  # (start, m, n_nodes)
         cost_direct = self.n_nodes + 1
         for s0, m in zip(run_start, run_len):
             n = self._first_rung(m)
@@ -465,10 +472,10 @@ class TruthGenerator:
             times = np.concatenate([s0 * h + self._run_matrices(m, n)[0] for s0, m, n in pending])
             raw = _raw_channels(self.track, self.profile, times, self.oscillations)
             groups: dict[tuple[int, int], list[int]] = {}
-            offsets = np.cumsum([0] + [n for _, _, n in pending])
+            offsets: np.ndarray = np.cumsum([0] + [n for _, _, n in pending])
             for i, (_, m, n) in enumerate(pending):
                 groups.setdefault((m, n), []).append(i)
-            retry = []
+            retry: list[tuple[int, int, int]] = []
             for (m, n), members in groups.items():
                 _, coef_from_values, end_matrix, int_matrix = self._run_matrices(m, n)
                 pts = (offsets[members][:, None] + np.arange(n)[None, :]).ravel()
@@ -481,8 +488,8 @@ class TruthGenerator:
                     ends[rows] = np.matmul(end_matrix, channels[ok]).reshape(-1, _N_CHANNELS)
                     integ[rows] = np.matmul(int_matrix, channels[ok, :, :6]).reshape(-1, R, 6)
                     fitted[rows] = True
-                for i in np.flatnonzero(~good):
-                    s0 = int(starts[i])
+                for bad in np.flatnonzero(~good):
+                    s0 = int(starts[bad])
                     higher = [r for r in self._rungs if r > n]
                     if higher and higher[0] < m * cost_direct:
                         retry.append((s0, m, higher[0]))
@@ -568,7 +575,7 @@ def _cheb_inverse(n: int) -> tuple[np.ndarray, np.ndarray]:
     return x, inv
 
 
-def _run_matrices(m: int, n: int, orders: int, h: float):
+def _run_matrices(m: int, n: int, orders: int, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Matrices of a run of m samples of length h fitted with n Chebyshev nodes.
 
     Returns node offsets from the run start (s, (n,)), values -> coefficients (n, n),
@@ -610,7 +617,8 @@ def _run_matrices(m: int, n: int, orders: int, h: float):
     return out
 
 
-def _raw_channels(track, profile, t: np.ndarray, oscillations) -> np.ndarray:
+def _raw_channels(track: Track, profile: SpeedProfile, t: np.ndarray,
+                  oscillations: Sequence[Oscillation]) -> np.ndarray:
     """The 18 interpolated channels at times t, (n, 18); heading as evaluated (the fields
     of :func:`navsim.motion.true_state`: omega_ib_b, specific_force_b, velocity_n, then
     _SCALAR_FIELDS, in that order)."""
@@ -624,7 +632,7 @@ def _channels(raw: np.ndarray, nb: int, n: int) -> np.ndarray:
     return out
 
 
-def _row_map(ks: np.ndarray, b: int):
+def _row_map(ks: np.ndarray, b: int) -> Callable[[Any], np.ndarray]:
     """Sample index -> row in the output of blocks ks (sorted, possibly not contiguous)."""
     first = int(ks[0]) * b
     if int(ks[-1]) - int(ks[0]) == ks.size - 1:
@@ -681,10 +689,10 @@ def _concat(parts: list[IdealSamples]) -> IdealSamples:
         return parts[0]
     truth = TrueState(**{f: np.concatenate([getattr(p.truth, f) for p in parts])
                          for f in TrueState.__dataclass_fields__})
-    return IdealSamples(
-        *(np.concatenate([getattr(p, f) for p in parts]) for f in ("dtheta_r", "dv_r", "omega_end", "force_end")),
-        truth=truth, used_block=np.concatenate([p.used_block for p in parts]),
-    )
+    dtheta_r, dv_r, omega_end, force_end = (np.concatenate([getattr(p, f) for p in parts])
+                                            for f in ("dtheta_r", "dv_r", "omega_end", "force_end"))
+    return IdealSamples(dtheta_r, dv_r, omega_end, force_end, truth=truth,
+                        used_block=np.concatenate([p.used_block for p in parts]))
 
 
 def _slice(x: IdealSamples, lo: int, hi: int) -> IdealSamples:

@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterator, Protocol, Sequence, cast
 
 from ..errors import ConfigError, DependencyNotInstalled
 from .database import finished_keys, open_database, store
@@ -24,8 +24,17 @@ _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "V
                 "NUMEXPR_NUM_THREADS")
 
 
+class DaskClient(Protocol):
+    """What the campaign uses of a ``distributed.Client`` (a running client may be passed
+    as ``scheduler``): ``submit(fn, *args, pure=False)`` returning a future, and ``close()``."""
+
+    def submit(self, func: Callable[..., Any], *args: Any, **kwargs: Any) -> Any: ...
+
+    def close(self) -> Any: ...
+
+
 @contextlib.contextmanager
-def _single_threaded_children():
+def _single_threaded_children() -> Iterator[None]:
     """Environment for worker processes started inside: one BLAS / OpenMP thread each
     (variables the user set are kept). The episodes use small matrices, where BLAS
     threads only cost wake-ups (measured: 0.43 s CPU for six 20-s episodes with the
@@ -74,7 +83,7 @@ def _die_with_parent(campaign_pid: int) -> None:
     if not _alive(campaign_pid) or (parent == 1 and campaign_pid != 1):  # died before the prctl took effect
         os._exit(1)
 
-    def watch():
+    def watch() -> None:
         while True:
             time.sleep(1.0)
             if os.getppid() != parent or not _alive(campaign_pid):
@@ -88,7 +97,7 @@ _FORKSERVER_PRELOAD = ["navsim.campaign", "navsim.report", "navsim.episode", "na
                        "navsim.campaign.warm"]
 
 
-def _worker_context():
+def _worker_context() -> Any:
     """The start method of local workers: ``forkserver`` (preloading the episode code)
     where available, else ``spawn``."""
     if "forkserver" in multiprocessing.get_all_start_methods():
@@ -124,13 +133,14 @@ def _run_local(todo: list[EpisodeTask], workers: int, handle: Callable[[EpisodeT
 DASK_RESUBMITS = 3  # times a lost episode result is resubmitted before it is stored as failed
 
 
-def _run_dask(todo: list[EpisodeTask], scheduler: str | Any, handle: Callable[[EpisodeTask, dict], None],
+def _run_dask(todo: list[EpisodeTask], scheduler: str | DaskClient, handle: Callable[[EpisodeTask, dict], None],
               timeout_s: float = 30.0) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError:
         raise DependencyNotInstalled("distributed", "campaign") from None
     own = isinstance(scheduler, str)
+    client: DaskClient
     if own:
         try:
             client = Client(scheduler, timeout=f"{timeout_s}s")
@@ -138,7 +148,7 @@ def _run_dask(todo: list[EpisodeTask], scheduler: str | Any, handle: Callable[[E
             raise CampaignInterrupted(f"no Dask scheduler answered at {scheduler} within {timeout_s:g} s "
                                       f"({type(exc).__name__}: {exc})") from None
     else:
-        client = scheduler
+        client = cast(DaskClient, scheduler)
     try:
         futures = {}
         for task in todo:
@@ -187,7 +197,7 @@ class CampaignResult:
     wall_s: float = 0.0
 
 
-def run_campaign(spec: CampaignSpec, *, scheduler: str | Any | None = None, workers: int | None = None,
+def run_campaign(spec: CampaignSpec, *, scheduler: str | DaskClient | None = None, workers: int | None = None,
                  retry_failed: bool = False,
                  progress: bool = True, on_result: Callable[[EpisodeTask, dict], None] | None = None,
                  tasks: Sequence[EpisodeTask] | None = None) -> CampaignResult:

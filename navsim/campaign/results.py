@@ -12,7 +12,7 @@ import json
 import math
 import sqlite3
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
@@ -20,6 +20,10 @@ from ..errors import ConfigError
 from .database import check_database, corrupt_database
 from .spec import CampaignSpec
 from .tasks import episode_tasks
+
+if TYPE_CHECKING:  # type hints only
+    from ..metrics import EpisodeScore
+    from ..report import BenchResult
 
 
 def read_rows(database: str | Path, spec: CampaignSpec | None = None) -> list[dict]:
@@ -48,13 +52,17 @@ def read_rows(database: str | Path, spec: CampaignSpec | None = None) -> list[di
     return rows
 
 
-def _score_from_row(row: dict):
+def _nan_for_none(fields: dict[str, Any]) -> dict[str, Any]:
+    return {k: (math.nan if v is None else v) for k, v in fields.items()}
+
+
+def _score_from_row(row: dict) -> EpisodeScore:
     from ..metrics import SCORE_FIELDS, EpisodeScore, Outage
 
     flat = row["scores"]
-    values = {k: (math.nan if flat.get(k) is None and k != "seed" else flat.get(k)) for k in SCORE_FIELDS}
+    values: dict[str, Any] = {k: (math.nan if flat.get(k) is None and k != "seed" else flat.get(k)) for k in SCORE_FIELDS}
     values["divergence_reason"] = flat.get("divergence_reason") or ""  # absent from rows of older versions
-    outages = tuple(Outage(**{k: (math.nan if v is None else v) for k, v in o.items()}) for o in row["outages"])
+    outages = tuple(Outage(**_nan_for_none(o)) for o in row["outages"])
     return EpisodeScore(**values, outages=outages)
 
 
@@ -92,7 +100,7 @@ def build_results(spec: CampaignSpec, rows: list[dict] | None = None) -> dict:
     return out
 
 
-def _html_table(result, metrics: Sequence[str]) -> str:
+def _html_table(result: BenchResult, metrics: Sequence[str]) -> str:
     from ..metrics import EpisodeScore
     from ..report import diverged_counts, format_cell
 

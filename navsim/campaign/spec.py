@@ -11,7 +11,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterable
+from typing import TYPE_CHECKING, Any, Iterable
 
 from ..errors import ConfigError, NavsimError
 
@@ -30,7 +30,7 @@ class CampaignInterrupted(NavsimError):
     or the Dask scheduler does not answer. The finished rows are kept."""
 
 
-def _canonical_json(obj) -> str:
+def _canonical_json(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
 
 
@@ -96,7 +96,7 @@ def _check_keys(table: dict, allowed: Iterable[str], where: str, source: str | N
                           table[extra[0]], source=source)
 
 
-def _seeds(value, source) -> tuple[int, ...]:
+def _seeds(value: Any, source: str | None) -> tuple[int, ...]:
     from ..report import parse_seeds
 
     if isinstance(value, list):
@@ -146,7 +146,7 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
     raw_scen = data.get("scenarios")
     if not isinstance(raw_scen, list) or not raw_scen:
         raise ConfigError("scenarios", "a non-empty array of tables [[scenarios]]", raw_scen, source=source)
-    scenarios = []
+    scenarios: list[ScenarioEntry] = []
     for i, entry in enumerate(raw_scen):
         where = f"scenarios[{i}]"
         if not isinstance(entry, dict):
@@ -178,7 +178,7 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
     if not isinstance(raw_est, list) or not raw_est:
         raise ConfigError("estimators", "a non-empty array of tables [[estimators]]", raw_est, source=source)
     have = available()
-    estimators = []
+    estimators: list[EstimatorEntry] = []
     for i, entry in enumerate(raw_est):
         where = f"estimators[{i}]"
         if not isinstance(entry, dict):

@@ -9,9 +9,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Iterator
 
 from ..errors import NavsimError
 from ..overrides import scenario_from_args as _scenario
+
+if TYPE_CHECKING:  # type hints only
+    from ..simulator import Chunk
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -64,7 +68,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     total = scenario.timing.steps
     bar = tqdm(total=total, unit="step", disable=args.quiet or None, desc=f"simulate {scenario.name}", file=sys.stderr)
 
-    def chunks():
+    def chunks() -> Iterator[Chunk]:
         for chunk in sim.chunks(args.chunk):
             bar.update(len(chunk))
             yield chunk
@@ -138,7 +142,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fmt(value) -> str:
+def _fmt(value: object) -> str:
     if value is None:
         return "-"
     if isinstance(value, float):

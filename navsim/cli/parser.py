@@ -5,6 +5,7 @@ as one line with exit status 2.
 from __future__ import annotations
 
 import argparse
+from typing import NoReturn
 
 from .commands import cmd_estimators, cmd_paper, cmd_scenarios, cmd_show, cmd_simulate
 
@@ -34,7 +35,7 @@ def _positive_int(text: str) -> int:
 class _Parser(argparse.ArgumentParser):
     """argparse with the one-line error of the rest of the command (exit status 2)."""
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 

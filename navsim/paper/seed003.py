@@ -145,19 +145,20 @@ from __future__ import annotations
 import math
 import os
 import time
-from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 if TYPE_CHECKING:  # type hints only
-    from ..simulator import Chunk
+    from ..simulator import Chunk, Simulator, Start
+    from ..types import Context
 
 __all__ = ["run", "run_example"]
 
 _QUICK_COV_STEP = 0.1
 
 
-def _episode(sim, seed: int):
+def _episode(sim: Simulator, seed: int) -> tuple[Start, Context, list[Chunk]]:
     """Generate one episode once (start, context, chunks)."""
     from ..episode import make_context
 
@@ -165,7 +166,8 @@ def _episode(sim, seed: int):
     return start, make_context(sim), list(sim.chunks(10_000))
 
 
-def _filter_run(start, ctx, chunks, prn, **options):
+def _filter_run(start: Start, ctx: Context, chunks: Sequence[Chunk], prn: np.ndarray,
+                **options: Any) -> dict[str, Any]:
     """Run PaperEkf over pre-generated chunks; states, covariances, NIS and CPU time."""
     from ..episode import measurement_batch
     from ..estimators.paper_ekf import PaperEkf
@@ -185,7 +187,7 @@ def _filter_run(start, ctx, chunks, prn, **options):
             "dof": np.concatenate(dof), "cpu": cpu, "diverged": est.diverged, "substeps": est.substeps}
 
 
-def _truth_state(ctx, chunks):
+def _truth_state(ctx: Context, chunks: Sequence[Chunk]) -> tuple[np.ndarray, np.ndarray]:
     from ..estimators.paper_ekf import paper_state
 
     cat = lambda f: np.concatenate([getattr(c.truth, f) for c in chunks])  # noqa: E731
@@ -217,7 +219,7 @@ def outage_instants(t: np.ndarray, epoch_t: np.ndarray, start_s: float) -> tuple
     return i_pre, max(i_first - 1, 0)
 
 
-def _errors(res, yt):
+def _errors(res: dict[str, Any], yt: np.ndarray) -> np.ndarray:
     e = res["y"] - yt
     e[:, :3] = (e[:, :3] + np.pi) % (2 * np.pi) - np.pi
     return e
@@ -243,7 +245,7 @@ def run_example(seeds: Sequence[int] = (0, 1, 2), variants: Mapping[str, dict] |
         sc = sc.with_overrides({"outages": {"windows_s": [[20.0, 40.0]]}})
     sim = Simulator(sc)
     prn = np.asarray(sim.constellation.prn)
-    out = {"runs": {name: [] for name in variants}, "truth": [], "gen_cpu": []}
+    out: dict[str, Any] = {"runs": {name: [] for name in variants}, "truth": [], "gen_cpu": []}
     for seed in seeds:
         t0 = time.process_time()
         start, ctx, chunks = _episode(sim, seed)
@@ -259,7 +261,8 @@ def run_example(seeds: Sequence[int] = (0, 1, 2), variants: Mapping[str, dict] |
     return out
 
 
-def _summary(runs, truth, r, index):
+def _summary(runs: Sequence[dict[str, Any]], truth: Sequence[np.ndarray], r: float,
+             index: int) -> tuple[float, float, float, float]:
     """Max over seeds at one time index: V_Y % of value, max angle % of value, latitude m."""
     vy = max(abs(res["e"][index, 4]) / abs(yt[index, 4]) * 100 for res, yt in zip(runs, truth))
     ang = max(np.max(np.abs(res["e"][index, :3]) / np.abs(yt[index, :3])) * 100 for res, yt in zip(runs, truth))
@@ -284,7 +287,7 @@ def _jacobian_rows() -> list[dict]:
     worst_f, worst_h = 0.0, 0.0
     worst_13 = 0.0
     for _ in range(10):
-        y = list(est._Y)
+        y: Any = list(est._Y)  # 5 floats (the functions below read y[i])
         y[:3] = list(np.array(y[:3]) + rng.normal(size=3) * 0.01)
         y[4] = 20.0 + rng.normal()
         w, f, t = rng.normal(size=3) * 1e-3, np.array([0.3, -0.2, 9.8]) + rng.normal(size=3) * 0.3, 100.0
@@ -303,13 +306,14 @@ def _jacobian_rows() -> list[dict]:
         h_a, _ = printed_observer_13(y, f, t, est.track_functions, est._a, est._omega, centrifugal_sign=-1.0)
         worst_13 = max(worst_13, abs(innov - (f[0] - h_a)) / np.linalg.norm(f))
     chunk = sim.advance(100)
+    assert chunk.gnss is not None  # paper-2012 has GNSS
     ok = chunk.gnss.valid[0]
     pos, vel = chunk.gnss.sat_pos_e[0][ok], chunk.gnss.sat_vel_e[0][ok]
     phi, v, d = est._Y[3], 20.0, 1e-8
     cs = [x.imag / 1e-20 for x in est.gnss_model(complex(phi, 1e-20), v, pos, vel)[:2]]
-    fd = [(a - b) / (2 * d) for a, b in zip(est.gnss_model(phi + d, v, pos, vel)[:2],
-                                               est.gnss_model(phi - d, v, pos, vel)[:2])]
-    worst_g = max(float(np.max(np.abs(c - f) / np.abs(f).max())) for c, f in zip(cs, fd))
+    fd_g = [(a - b) / (2 * d) for a, b in zip(est.gnss_model(phi + d, v, pos, vel)[:2],
+                                                 est.gnss_model(phi - d, v, pos, vel)[:2])]
+    worst_g = max(float(np.max(np.abs(c - f) / np.abs(f).max())) for c, f in zip(cs, fd_g))
     return [
         {"ref": "003 App. 2", "quantity": "dF/dY analytic+complex-step vs finite differences, max rel. dev.",
          "paper": None, "navsim": worst_f, "unit": "-"},
@@ -358,7 +362,7 @@ def _identity_rows() -> list[dict]:
     return rows
 
 
-def _example_rows(agg) -> list[dict]:
+def _example_rows(agg: dict[str, Any]) -> list[dict]:
     """The paper's printed end-of-run figures against paper-ekf on paper-2012 (max over seeds)."""
     from .seed003_experiments import INSTANTS
 
@@ -378,7 +382,7 @@ def _example_rows(agg) -> list[dict]:
     ]
 
 
-def _printed_rows(ex) -> list[dict]:
+def _printed_rows(ex: dict[str, Any]) -> list[dict]:
     """The printed formulas (seed 0) against the corrected ones, at the end of the outage and run."""
     rows = []
     t, r = ex["t"], ex["r"]
@@ -417,8 +421,10 @@ def run(plot_dir: str | None = None, quick: bool = False, seeds: Sequence[int] |
     rows = sx.experiment_rows(agg, cov)
     if not quick:
         rows += _example_rows(agg)
-    printed = {"corrected": {"cov_step_s": cov}, "printed centrifugal sign": {"cov_step_s": cov, "as_printed": "centrifugal"},
-               "printed Phi(beta, gamma)": {"cov_step_s": cov, "as_printed": "kinematics"}}
+    printed: dict[str, dict[str, Any]] = {
+        "corrected": {"cov_step_s": cov},
+        "printed centrifugal sign": {"cov_step_s": cov, "as_printed": "centrifugal"},
+        "printed Phi(beta, gamma)": {"cov_step_s": cov, "as_printed": "kinematics"}}
     if quick:
         printed = {"corrected": {"cov_step_s": cov}, "printed centrifugal sign": printed["printed centrifugal sign"]}
     ex = run_example((0,), printed, duration_s=60.0 if quick else None, quick=quick)
@@ -436,7 +442,7 @@ def run(plot_dir: str | None = None, quick: bool = False, seeds: Sequence[int] |
     return rows
 
 
-def _plots(plot_dir: str, ex) -> None:
+def _plots(plot_dir: str, ex: dict[str, Any]) -> None:
     import matplotlib
 
     matplotlib.use("Agg")

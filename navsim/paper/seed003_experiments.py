@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -65,7 +65,7 @@ METRICS = {  # name -> unit
     "tilt": "urad", "heading": "urad",
 }
 _COV_FILTERS = ("paper-ekf", "full-state-ekf")
-_WARM = []
+_WARM: list[bool] = []
 
 
 def _warm_up() -> None:
@@ -89,7 +89,7 @@ def _overrides(quick: bool) -> dict:
     return {}
 
 
-def _task(args):
+def _task(args: tuple[str, int, float | None, bool, bool]) -> tuple[str, int, dict[str, Any]]:
     """One (scenario, seed): simulate once, run every filter of the matrix on it."""
     from ..episode import make_context, measurement_batch
     from ..estimators import make
@@ -119,8 +119,8 @@ def _task(args):
     out = {"t": t[idx].tolist(), "filters": {}}
     labels = list(MATRIX[key]) + (["paper-ekf (python engine)"] if time_python else [])
     for label in labels:
-        name, opts = FILTERS.get(label, ("paper-ekf", {"engine": "python"}))
-        opts = dict(opts)
+        name, base_opts = FILTERS.get(label, ("paper-ekf", {"engine": "python"}))
+        opts: dict[str, Any] = dict(base_opts)
         if name in _COV_FILTERS and cov_step_s is not None:
             opts["cov_step_s"] = cov_step_s
         est = make(name, **opts)
@@ -250,7 +250,7 @@ def experiment_rows(agg: dict, cov_step_s: float | None) -> list[dict]:
     return rows
 
 
-def _interval(agg, key, label, metric, j):
+def _interval(agg: dict, key: str, label: str, metric: str, j: int) -> dict:
     return _stats(agg[key][label]["err"][metric][:, j])
 
 
@@ -259,14 +259,14 @@ def verdicts(agg: dict, cov_step_s: float | None) -> list[str]:
     out = []
     j_out, j_end = 1, 2
 
-    def cmp(a, b):  # "smaller" / "larger" / "not distinguishable" by non-overlapping 95 % intervals
+    def cmp(a: dict, b: dict) -> str:  # "smaller" / "larger" / "not distinguishable" by non-overlapping 95 % intervals
         if a["ci95"][1] < b["ci95"][0]:
             return "smaller"
         if a["ci95"][0] > b["ci95"][1]:
             return "larger"
         return "not distinguishable (95 % intervals overlap)"
 
-    def fmt(s, unit):
+    def fmt(s: dict, unit: str) -> str:
         return f"{s['mean_abs']:.3g} {unit} [{s['ci95'][0]:.3g}, {s['ci95'][1]:.3g}]"
 
     # (i) accuracy

@@ -11,7 +11,7 @@ by Newton steps on the exact integral. The s-derivatives follow by the chain rul
 
 import copy
 import math
-from typing import Sequence, TypeVar
+from typing import Literal, Sequence, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,13 +40,21 @@ class ArcLengthTrack:
     segments: tuple[TrackSegment, ...]
     name: str
     cant_model: CantModel
+    _plan_ref: tuple[float, float]  # (lat, h) of the plan-curvature scale, set by the subclass
 
     # -------------------------------------------------------------- to implement
     def _curve(self, u: np.ndarray, order: int) -> list[np.ndarray]:  # pragma: no cover
         raise NotImplementedError
 
     # -------------------------------------------------------------- metric speed
-    def _sigma(self, x: list[np.ndarray], with_derivative: bool = False):
+    @overload
+    def _sigma(self, x: list[np.ndarray], with_derivative: Literal[False] = ...) -> np.ndarray: ...
+
+    @overload
+    def _sigma(self, x: list[np.ndarray], with_derivative: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def _sigma(self, x: list[np.ndarray],
+               with_derivative: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """sigma = ds/du and (optionally) d sigma / du from [X, X', X'']."""
         x0, x1 = x[0], x[1]
         lat, h = x0[..., 0], x0[..., 2]
@@ -163,14 +171,14 @@ class ArcLengthTrack:
         u = self._u_of_s(s)
         return self._geodetic_at(self._curve(u, 2))
 
-    def _geodetic_at(self, x: list[np.ndarray]):
+    def _geodetic_at(self, x: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         sig, dsig = self._sigma(x, with_derivative=True)
         inv = (1.0 / sig)[..., None]
         d1 = x[1] * inv
         d2 = x[2] * inv * inv - x[1] * (dsig / sig**3)[..., None]
         return x[0], d1, d2
 
-    def _geodetic_and_cant(self, s: ArrayLike):
+    def _geodetic_and_cant(self, s: ArrayLike) -> tuple[np.ndarray, ...]:
         """geodetic(s) and cant(s) sharing one inversion u(s) (used by track_frame)."""
         s = self._check_s(s)
         u = self._u_of_s(s)
@@ -198,7 +206,7 @@ class ArcLengthTrack:
         s = self._check_s(s)
         return self._plan_curvature_at(self._curve(self._u_of_s(s), 3))
 
-    def _plan_curvature_at(self, x: list[np.ndarray]):
+    def _plan_curvature_at(self, x: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         sig = self._sigma(x)
         c_n, c_e = self._plan_scale
         lat = x[0][..., 0]

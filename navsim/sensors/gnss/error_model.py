@@ -165,6 +165,9 @@ class GnssErrorModel:
         """
         from ...types import NominalGnss
 
+        lever = tuple(float(x) for x in lever_arm_b_m)
+        if len(lever) != 3:
+            raise ConfigError("lever_arm_b_m", "3 numbers (body axes x, y, z, m)", lever_arm_b_m)
         clock = bool(self.clock_enabled)
         iono, tropo = self.ionosphere_zenith_m > 0.0, self.troposphere_zenith_m > 0.0
         return NominalGnss(
@@ -180,7 +183,7 @@ class GnssErrorModel:
             ionosphere_zenith_sigma_m=4.5 if iono else 0.0,
             troposphere_zenith_m=2.448 if tropo else 0.0,
             troposphere_zenith_sigma_m=0.12 if tropo else 0.0,
-            lever_arm_b_m=tuple(float(x) for x in lever_arm_b_m),
+            lever_arm_b_m=(lever[0], lever[1], lever[2]),
         )
 
     # ----------------------------------------------------------------- pieces
@@ -215,9 +218,9 @@ class GnssErrorModel:
 
     def multipath_sigma(self, elevation: ArrayLike) -> np.ndarray:
         """Multipath standard deviation at elevation E, m: sigma_mp exp(-E / E0)."""
-        elevation = np.clip(np.asarray(elevation, dtype=float), 0.0, None)
+        above: np.ndarray = np.clip(np.asarray(elevation, dtype=float), 0.0, None)
         return self.multipath_sigma_m * np.exp(
-            -elevation / np.radians(self.multipath_elevation_scale_deg)
+            -above / np.radians(self.multipath_elevation_scale_deg)
         )
 
     @staticmethod
@@ -302,7 +305,7 @@ class GnssEpochs:
         return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names})
 
 
-def _clock_cholesky(model: GnssErrorModel, dt: np.ndarray):
+def _clock_cholesky(model: GnssErrorModel, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cholesky factor entries of the two-state clock process noise over dt (Brown & Hwang 9.3)."""
     s_f, s_g = model.clock_psd
     q_bb = s_f * dt + s_g * dt**3 / 3.0
@@ -482,7 +485,7 @@ def simulate_epochs_batch(
     valid = above & visible & finite
     zero = np.zeros(())
 
-    def shared(a):
+    def shared(a: np.ndarray) -> np.ndarray:
         return np.broadcast_to(a, (members, *a.shape))
 
     epochs = GnssEpochs(

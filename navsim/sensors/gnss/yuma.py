@@ -203,6 +203,6 @@ def reference_almanac(*, epoch_offset_s: float = 0.0) -> Constellation:
     """
     from importlib.resources import as_file, files
 
-    resource = files("navsim").joinpath("data", "almanac", REFERENCE_ALMANAC)
+    resource = files("navsim") / "data" / "almanac" / REFERENCE_ALMANAC
     with as_file(resource) as path:
         return load_yuma(path, epoch_offset_s=epoch_offset_s, name="gps-walker-almanac")
