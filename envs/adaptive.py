@@ -87,9 +87,12 @@ from .navigation import resolve_scenario
 from .spaces import check_action
 
 if TYPE_CHECKING:  # type hints only
+    from navsim.earth import EarthModel
     from navsim.scenario import Scenario
+    from navsim.simulator import Chunk
+    from navsim.types import EstimateBatch, MeasurementBatch
 
-    from .render import FrameView
+    from .render import FrameView, TrackRenderer
 
 __all__ = ["AdaptiveFilterEnv", "NoiseAdapter"]
 
@@ -145,6 +148,8 @@ class AdaptiveFilterEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
+    observation_space: gym.spaces.Box
+    _pos: int  # the next step of the current chunk (set with the chunk)
 
     def __init__(self, scenario: str | Scenario = "paper-2012", *, estimator: Any = "lc-ekf",
                  estimator_options: dict | None = None,
@@ -175,7 +180,7 @@ class AdaptiveFilterEnv(gym.Env):
         if int(chunk_steps) != chunk_steps or chunk_steps < 1:
             raise ConfigError("chunk_steps", "a positive integer", chunk_steps)
         self.chunk_steps = max(1, int(chunk_steps) // self.steps_per_decision) * self.steps_per_decision
-        self._chunk = None
+        self._chunk: Chunk | None = None
         self.sim = Simulator(self.scenario)
         self.context = make_context(self.sim)
         self.prn = np.asarray(self.sim.constellation.prn)
@@ -185,7 +190,7 @@ class AdaptiveFilterEnv(gym.Env):
         self.reward_cap = float(reward_cap)
         self.render_mode = render_mode
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * timing.nav_period_s)}
-        self._renderer = None
+        self._renderer: TrackRenderer | None = None
         self._scales = (1.0, 1.0)
         self.n_steps = timing.steps
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
@@ -194,7 +199,7 @@ class AdaptiveFilterEnv(gym.Env):
         self.observation_space = gym.spaces.Box(low, high, dtype=np.float32)
         self._k = -1
 
-    def _features(self, out, chunk) -> np.ndarray:
+    def _features(self, out: EstimateBatch, chunk: _Interval) -> np.ndarray:
         cov = out.covariance
         if cov is not None and np.all(np.isfinite(cov[-1, :3, :3])):
             hs = math.sqrt(max(cov[-1, 0, 0] + cov[-1, 1, 1], 1e-12))
@@ -220,22 +225,23 @@ class AdaptiveFilterEnv(gym.Env):
                       (t - self._last_fix_t) / 100.0, self._prev[0], self._prev[1], t / self.scenario.timing.duration_s])
         return np.clip(x, self.observation_space.low, self.observation_space.high).astype(np.float32)
 
-    def _run_interval(self):
+    def _run_interval(self) -> tuple[_Interval, EstimateBatch]:
         """Run the estimator over the next decision interval, served from the generated chunk."""
         from navsim.episode import measurement_batch
 
-        if self._chunk is None or self._pos >= len(self._chunk):
-            self._chunk = self.sim.advance(self.chunk_steps)  # generation is chunk-invariant: the same numbers
-            self._batch = measurement_batch(self._chunk, self.prn, self.scenario.timing.nav_period_s)
-            self.tape.add_chunk(self._chunk)
+        chunk = self._chunk
+        if chunk is None or self._pos >= len(chunk):
+            chunk = self._chunk = self.sim.advance(self.chunk_steps)  # generation is chunk-invariant: the same numbers
+            self._batch = measurement_batch(chunk, self.prn, self.scenario.timing.nav_period_s)
+            self.tape.add_chunk(chunk)
             self._pos = 0
         a = self._pos
-        b = min(a + self.steps_per_decision, len(self._chunk))
+        b = min(a + self.steps_per_decision, len(chunk))
         out = step_batch(self.estimator, _slice_batch(self._batch, a, b))
-        self.tape.add_estimates(self._chunk.step0 + a, out)
+        self.tape.add_estimates(chunk.step0 + a, out)
         self._pos = b
-        self._k = self._chunk.step0 + b
-        return _Interval(self._chunk, a, b), out
+        self._k = chunk.step0 + b
+        return _Interval(chunk, a, b), out
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
@@ -278,7 +284,7 @@ class AdaptiveFilterEnv(gym.Env):
         e = float(np.mean(err))
         reward = -e if e < self.reward_cap else -self.reward_cap
         obs = self._features(out, chunk)
-        info = {"q_scale": float(q), "r_scale": float(r), "receiver_outage": bool(chunk.receiver_outage[-1])
+        info: dict[str, Any] = {"q_scale": float(q), "r_scale": float(r), "receiver_outage": bool(chunk.receiver_outage[-1])
                 if len(chunk.receiver_outage) else False, "position_error_m": e}
         truncated = self._k >= self.n_steps
         if truncated:
@@ -321,11 +327,11 @@ class AdaptiveFilterEnv(gym.Env):
 class _Interval:
     """Steps a..b of a simulator chunk: what the features and the reward read."""
 
-    def __init__(self, chunk, a: int, b: int):
+    def __init__(self, chunk: Chunk, a: int, b: int):
         tr = chunk.truth
         self.t = chunk.t[a:b]
         self.truth = _Truth(tr.lat[a:b], tr.lon[a:b], tr.h[a:b])
-        self.gnss = None
+        self.gnss: _Epochs | None = None
         self.receiver_outage = np.zeros(0, dtype=bool)
         if chunk.gnss is not None:
             local = np.asarray(chunk.gnss_step)
@@ -338,16 +344,16 @@ class _Interval:
 
 
 class _Truth:
-    def __init__(self, lat, lon, h):
+    def __init__(self, lat: np.ndarray, lon: np.ndarray, h: np.ndarray):
         self.lat, self.lon, self.h = lat, lon, h
 
 
 class _Epochs:
-    def __init__(self, t, valid):
+    def __init__(self, t: np.ndarray, valid: np.ndarray):
         self.t, self.valid = t, valid
 
 
-def _slice_batch(batch, a: int, b: int):
+def _slice_batch(batch: MeasurementBatch, a: int, b: int) -> MeasurementBatch:
     """Steps a..b of a MeasurementBatch (epochs re-indexed)."""
     if a == 0 and b == len(batch):
         return batch
@@ -359,7 +365,7 @@ def _slice_batch(batch, a: int, b: int):
                             odometer_ds_m=None if batch.odometer_ds_m is None else batch.odometer_ds_m[a:b])
 
 
-def _position_error(solution: np.ndarray, truth, earth) -> np.ndarray:
+def _position_error(solution: np.ndarray, truth: _Truth, earth: EarthModel) -> np.ndarray:
     """3-D position error (m) per step (:func:`navsim.naverror.local_level_error`); inf where not finite."""
     d_e, d_n, d_u = local_level_error(solution[:, 0], solution[:, 1], solution[:, 2], truth.lat, truth.lon,
                                       truth.h, earth)

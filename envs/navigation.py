@@ -80,7 +80,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -93,6 +93,11 @@ from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, PreparedChunk, prepare_chunk
 from .spaces import ACTION_SCALE, action_space, check_action, layout_space
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.metrics import EpisodeScore
+
+    from .render import TrackRenderer
 
 __all__ = ["NavigationEnv", "resolve_scenario", "SCENARIO_SECTIONS"]
 
@@ -189,9 +194,9 @@ class NavigationEnv(gym.Env):
                         "scenario_toml": self.scenario.to_toml()}
         self._pc: PreparedChunk | None = None
         self._k = -1
-        self._renderer = None
+        self._renderer: TrackRenderer | None = None
         self.tape: EpisodeTape | None = None
-        self.last_score = None
+        self.last_score: EpisodeScore | None = None
         self.agent_name = "agent"
 
     # ------------------------------------------------------------------ episode
@@ -232,6 +237,7 @@ class NavigationEnv(gym.Env):
 
     def _step_info(self, i: int) -> dict:
         pc = self._pc
+        assert pc is not None  # loaded by reset
         info = {"receiver_outage": pc.receiver_outage[i], "gnss_n_valid": pc.n_valid[i]}
         if self.truth_in_info:
             info["truth"] = pc.truth[i, :9].copy()
@@ -260,9 +266,11 @@ class NavigationEnv(gym.Env):
         tape = self.tape
         if tape is not None:
             tape.actions.append(a)
-        info = {"receiver_outage": self._pc.receiver_outage[i], "gnss_n_valid": self._pc.n_valid[i]}
+        pc = self._pc
+        assert pc is not None  # loaded by reset (k >= 0)
+        info = {"receiver_outage": pc.receiver_outage[i], "gnss_n_valid": pc.n_valid[i]}
         if self.truth_in_info:
-            info["truth"] = self._pc.truth[i, :9].copy()
+            info["truth"] = pc.truth[i, :9].copy()
         k += 1
         self._k = k
         if k == self.n_steps:
@@ -274,8 +282,8 @@ class NavigationEnv(gym.Env):
                 self.render()
             return obs, reward, False, True, info
         i += 1
-        if i == self._pc.n:
-            self._load_chunk(self._pc.last_outage, self._pc.last_n_valid)
+        if i == pc.n:
+            self._load_chunk(pc.last_outage, pc.last_n_valid)
             i = 0
         self._i = i
         if self.render_mode == "human":
@@ -294,7 +302,7 @@ class NavigationEnv(gym.Env):
             e = e + w_att * math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         return float(e)
 
-    def _action_list(self, action, k: int) -> list:
+    def _action_list(self, action: ArrayLike, k: int) -> list:
         """The action as 9 floats (checked first); records the extras of an EstimateAction."""
         arr = check_action(action, (9,), "9 real numbers [lat, lon, h, vE, vN, vU, heading, pitch, roll] "
                            "(an array of shape (9,))")
@@ -310,9 +318,10 @@ class NavigationEnv(gym.Env):
                     self.tape.cpu[k] = cpu
         return arr.tolist()
 
-    def _score(self):
+    def _score(self) -> EpisodeScore:
         from navsim.metrics import score_episode
 
+        assert self.tape is not None  # called only with score=True
         record = self.tape.record(self.scenario, self.seed_value, self.agent_name, self.sim.earth, self.prior,
                                   self.action_scale)
         self.last_record = record

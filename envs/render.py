@@ -33,8 +33,38 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Protocol, Sequence, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.scenario import Scenario
+
+    from .chunks import EpisodeTape
+    from .navigation import NavigationEnv
+
+RGB = tuple[int, int, int]
+TextItem = tuple[float, float, str, str]
+"""``(x, y, text, align)``: a label at pixel x, top y, align "l", "r" or "c"."""
+
+
+class RenderableEnv(Protocol):
+    """What the renderer reads of an env: its simulator (``sim.track``), its scenario
+    (timing, name), ``render_mode`` and ``metadata["render_fps"]``; an env with a
+    ``render_view()`` method is drawn from that view, else as a NavigationEnv."""
+
+    @property
+    def sim(self) -> Any: ...
+
+    @property
+    def scenario(self) -> Scenario: ...
+
+    @property
+    def render_mode(self) -> str | None: ...
+
+    @property
+    def metadata(self) -> dict[str, Any]: ...
 
 __all__ = ["TrackRenderer", "FrameView", "navigation_view", "nice_step", "WIDTH", "HEIGHT"]
 
@@ -111,7 +141,7 @@ def _fmt(x: float, step: float) -> str:
     return f"{x:.{digits}f}"
 
 
-def _polyline(img: np.ndarray, x: np.ndarray, y: np.ndarray, color) -> None:
+def _polyline(img: np.ndarray, x: np.ndarray, y: np.ndarray, color: RGB) -> None:
     """Draw a connected polyline through pixel coordinates x, y (float arrays)."""
     if len(x) == 0:
         return
@@ -126,16 +156,17 @@ def _polyline(img: np.ndarray, x: np.ndarray, y: np.ndarray, color) -> None:
     _dots(img, x[seg] + frac * dx[seg], y[seg] + frac * dy[seg], color, 0)
 
 
-def _dots(img: np.ndarray, x, y, color, radius: int, box=None) -> None:
+def _dots(img: np.ndarray, x: ArrayLike, y: ArrayLike, color: RGB, radius: int,
+          box: tuple[int, int, int, int] | None = None) -> None:
     """Set the pixels within ``radius`` of each point; points outside the image (or ``box``
     = (x0, y0, x1, y1)) are dropped."""
     h, w = img.shape[:2]
     x0, y0, x1, y1 = box if box is not None else (0, 0, w - 1, h - 1)
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    ok = np.isfinite(x) & np.isfinite(y)
-    xi = np.rint(x[ok]).astype(int)
-    yi = np.rint(y[ok]).astype(int)
+    xf = np.asarray(x, dtype=float)
+    yf = np.asarray(y, dtype=float)
+    ok = np.isfinite(xf) & np.isfinite(yf)
+    xi = np.rint(xf[ok]).astype(int)
+    yi = np.rint(yf[ok]).astype(int)
     for oy in range(-radius, radius + 1):
         for ox in range(-radius, radius + 1):
             if ox * ox + oy * oy > radius * radius + radius:
@@ -146,7 +177,7 @@ def _dots(img: np.ndarray, x, y, color, radius: int, box=None) -> None:
 
 
 @lru_cache(maxsize=1)
-def _font():
+def _font() -> Any:
     from PIL import ImageFont
 
     try:
@@ -167,7 +198,7 @@ def _text_mask(text: str) -> np.ndarray:
     return np.asarray(mask, dtype=np.float32) / 255.0
 
 
-def _draw_text(img: np.ndarray, items) -> None:
+def _draw_text(img: np.ndarray, items: Sequence[TextItem]) -> None:
     """Draw ``(x, y, text, align)`` items, align in {"l", "r", "c"} horizontally, y the top."""
     h, w = img.shape[:2]
     for x, y, text, align in items:
@@ -188,13 +219,14 @@ class TrackRenderer:
 
     def __init__(self, width: int = WIDTH, height: int = HEIGHT):
         self.width, self.height = int(width), int(height)
-        self._fig = None
-        self._base = None
+        self._fig: Any = None  # matplotlib figure of the "human" mode
+        self._image: Any = None
+        self._base: np.ndarray | None = None
         self.map_box = (_LEFT, _TOP + 4, self.width - _RIGHT, _MAP_BOTTOM)
         self.strip_box = (_LEFT, _STRIP_TOP, self.width - _RIGHT, _STRIP_BOTTOM)
 
     # ------------------------------------------------------------------ background
-    def reset(self, env) -> None:
+    def reset(self, env: RenderableEnv) -> None:
         """Build the background (track, axes, ticks, scale bar) for the env's scenario."""
         from navsim.track import track_frame
 
@@ -228,7 +260,7 @@ class TrackRenderer:
         _draw_text(img, texts)
         self._base = img
 
-    def _map_axes(self, img: np.ndarray) -> list:
+    def _map_axes(self, img: np.ndarray) -> list[TextItem]:
         x0, y0, x1, y1 = self.map_box
         img[y0, x0:x1 + 1] = img[y1, x0:x1 + 1] = _AXIS
         img[y0:y1 + 1, x0] = img[y0:y1 + 1, x1] = _AXIS
@@ -240,7 +272,7 @@ class TrackRenderer:
         unit, factor = ("km", 1e-3) if km else ("m", 1.0)
         self.unit, self.factor = unit, factor
         step = nice_step(span * factor, 5) / factor  # metres
-        texts = []
+        texts: list[TextItem] = []
         for tick in np.arange(math.ceil(e_lo / step) * step, e_hi, step):
             x = int(round(self._px(tick, 0.0)[0]))
             img[y1:y1 + 4, x] = _AXIS
@@ -267,25 +299,26 @@ class TrackRenderer:
         img[y0, x0:x1 + 1] = img[y1, x0:x1 + 1] = _AXIS
         img[y0:y1 + 1, x0] = img[y0:y1 + 1, x1] = _AXIS
 
-    def _en(self, lat, lon):
-        lat, lon = np.asarray(lat, float), np.asarray(lon, float)
-        return (lon - self.lon0) * _EARTH_R * self.coslat, (lat - self.lat0) * _EARTH_R
+    def _en(self, lat: ArrayLike, lon: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        la, lo = np.asarray(lat, float), np.asarray(lon, float)
+        return (lo - self.lon0) * _EARTH_R * self.coslat, (la - self.lat0) * _EARTH_R
 
-    def _px(self, east, north):
+    def _px(self, east: ArrayLike, north: ArrayLike) -> tuple[Any, Any]:  # arrays, 0-d for scalars
         x0, y0, x1, y1 = self.map_box
         x = 0.5 * (x0 + x1) + (np.asarray(east) - self.cx) * self.scale
         y = 0.5 * (y0 + y1) - (np.asarray(north) - self.cy) * self.scale
         return x, y
 
     # ------------------------------------------------------------------ frames
-    def frame(self, env) -> np.ndarray:
+    def frame(self, env: RenderableEnv) -> np.ndarray:
         """The (H, W, 3) uint8 frame of the episode so far."""
         if self._base is None:
             self.reset(env)
+        assert self._base is not None  # built by reset
         view = view_of(env)
         img = self._base.copy()
         box = self.map_box
-        texts = [(_LEFT, 5, f"t = {view.t_s:.2f} s / {view.duration_s:g} s", "l"),
+        texts: list[TextItem] = [(_LEFT, 5, f"t = {view.t_s:.2f} s / {view.duration_s:g} s", "l"),
                  (self.width - _RIGHT, 5, str(env.scenario.name), "r")]
         if view.outage_lat.size:
             _dots(img, *self._px(*self._en(view.outage_lat, view.outage_lon)), _ORANGE, 2, box=box)
@@ -309,16 +342,16 @@ class TrackRenderer:
         _draw_text(img, texts)
         return img
 
-    def _clip(self, x, y):
+    def _clip(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clamp a path's pixels to the map box (a path leaving the box runs along its edge)."""
         x0, y0, x1, y1 = self.map_box
         ok = np.isfinite(x) & np.isfinite(y)
         return np.clip(x[ok], x0 + 1, x1 - 1), np.clip(y[ok], y0 + 1, y1 - 1)
 
-    def _strip(self, img: np.ndarray, view: FrameView) -> list:
+    def _strip(self, img: np.ndarray, view: FrameView) -> list[TextItem]:
         x0, y0, x1, y1 = self.strip_box
         duration = max(view.duration_s, 1e-9)
-        texts = []
+        texts: list[TextItem] = []
         if view.outage_t.size:  # each outage epoch shades the GNSS period after it (at least 3 px)
             half = max(1, int(math.ceil(0.5 * view.outage_dt / duration * (x1 - x0))))
             centre = x0 + (view.outage_t + 0.5 * view.outage_dt) / duration * (x1 - x0)
@@ -372,7 +405,7 @@ class TrackRenderer:
             self._fig = None
 
 
-def horizontal_error(est_lat, est_lon, lat, lon) -> np.ndarray:
+def horizontal_error(est_lat: ArrayLike, est_lon: ArrayLike, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
     """Horizontal distance (m) for display: spherical radius 6371 km, local-level."""
     d_n = (np.asarray(est_lat) - lat) * _EARTH_R
     d_e = (np.asarray(est_lon) - lon) * _EARTH_R * np.cos(lat)
@@ -380,7 +413,7 @@ def horizontal_error(est_lat, est_lon, lat, lon) -> np.ndarray:
     return np.where(np.isfinite(err), err, np.nan)
 
 
-def tape_view(tape, k: int, actions, scale, dt: float, duration_s: float, gnss_period_s: float,
+def tape_view(tape: EpisodeTape, k: int, actions: Sequence[ArrayLike], scale: ArrayLike | float, dt: float, duration_s: float, gnss_period_s: float,
               strip: str = "error", status: str = "", stride_max: int = 2000) -> FrameView:
     """The view of the first k steps of an episode tape (truth per step, GNSS per epoch).
 
@@ -415,7 +448,7 @@ def tape_view(tape, k: int, actions, scale, dt: float, duration_s: float, gnss_p
                      outage_dt=gnss_period_s, status=status)
 
 
-def navigation_view(env) -> FrameView:
+def navigation_view(env: NavigationEnv) -> FrameView:
     """The view of a :class:`~navsim.envs.navigation.NavigationEnv` episode so far."""
     dt = env.scenario.timing.nav_period_s
     duration = env.scenario.timing.duration_s
@@ -432,13 +465,13 @@ def navigation_view(env) -> FrameView:
     return tape_view(tape, k, tape.actions, env.action_scale, dt, duration, env.scenario.timing.gnss_period_s)
 
 
-def view_of(env) -> FrameView:
+def view_of(env: RenderableEnv) -> FrameView:
     """The env's own ``render_view()`` if it has one, else the navigation view."""
     own = getattr(env, "render_view", None)
-    return own() if callable(own) else navigation_view(env)
+    return own() if callable(own) else navigation_view(cast("NavigationEnv", env))
 
 
-def render_env(env, renderer: TrackRenderer | None):
+def render_env(env: RenderableEnv, renderer: TrackRenderer | None) -> tuple[np.ndarray | None, TrackRenderer | None]:
     """The common ``render()`` of the navsim envs; returns (result, renderer)."""
     import gymnasium as gym
 

@@ -44,7 +44,7 @@ or ``SubprocVecEnv`` with ``vec_env_cls``) instead.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, NoReturn, Sequence, SupportsIndex
 
 import numpy as np
 
@@ -55,17 +55,25 @@ except ImportError:  # the rl extra is optional
 
     raise DependencyNotInstalled("stable-baselines3", "rl") from None
 
+if TYPE_CHECKING:  # type hints only
+    from gymnasium.vector import VectorEnv
+
 __all__ = ["GymnasiumVecEnv", "make_sb3_vec_env"]
 
+Obs = np.ndarray | dict[str, np.ndarray]
+"""An observation batch: one array, or a dict of arrays for dict spaces (SB3's VecEnvObs)."""
+Indices = int | Sequence[int] | None
+"""Sub-env indices as SB3 passes them (None: all)."""
 
-def _writable(obs):
+
+def _writable(obs: Any) -> Obs:
     """A copy of the native env's read-only views (PyTorch refuses non-writable arrays)."""
     if isinstance(obs, dict):
         return {key: np.array(value) for key, value in obs.items()}
     return np.array(obs)
 
 
-def _index(obs, j: int):
+def _index(obs: Any, j: SupportsIndex) -> Obs:
     if isinstance(obs, dict):
         return {key: np.array(value[j]) for key, value in obs.items()}
     return np.array(obs[j])
@@ -80,26 +88,26 @@ class GymnasiumVecEnv(VecEnv):
         E.g. ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``.
     """
 
-    def __init__(self, venv):
+    def __init__(self, venv: VectorEnv) -> None:
         from gymnasium.vector import AutoresetMode
 
         self.venv = venv
         mode = venv.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
         self.autoreset_mode = AutoresetMode(mode) if isinstance(mode, str) else mode
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
-        self._actions = None
+        self._actions: np.ndarray | None = None
         self._next_seed: int | None = None
         self._rng = np.random.default_rng()
 
     # ------------------------------------------------------------------ SB3 interface
-    def seed(self, seed: int | None = None):
+    def seed(self, seed: int | None = None) -> list[int | None]:
         """Seeds ``seed + j`` for sub-env j at the next ``reset()`` (as Gymnasium's vector reset)."""
         super().seed(seed)
         self._next_seed = None if seed is None else int(seed)
         self._rng = np.random.default_rng(seed)
         return [None if seed is None else int(seed) + j for j in range(self.num_envs)]
 
-    def reset(self):
+    def reset(self) -> Obs:
         seed = self._next_seed
         if seed is None:
             seed = int(self._rng.integers(0, 2**31 - 1))
@@ -117,7 +125,7 @@ class GymnasiumVecEnv(VecEnv):
         shape = (self.num_envs, *self.action_space.shape)
         self._actions = check_action(actions, shape, f"an array of shape {shape} of real numbers", name="actions")
 
-    def step_wait(self):
+    def step_wait(self) -> tuple[Obs, np.ndarray, np.ndarray, list[dict]]:
         from gymnasium.vector import AutoresetMode
 
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
@@ -148,22 +156,23 @@ class GymnasiumVecEnv(VecEnv):
     def close(self) -> None:
         self.venv.close()
 
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+    def get_attr(self, attr_name: str, indices: Indices = None) -> list[Any]:
         value = getattr(self.venv.unwrapped if hasattr(self.venv, "unwrapped") else self.venv, attr_name)
         return [value for _ in self._get_indices(indices)]
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: Indices = None) -> None:
         setattr(self.venv.unwrapped if hasattr(self.venv, "unwrapped") else self.venv, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+    def env_method(self, method_name: str, *method_args: Any, indices: Indices = None,
+                   **method_kwargs: Any) -> list[Any]:
         target = self.venv.unwrapped if hasattr(self.venv, "unwrapped") else self.venv
         result = getattr(target, method_name)(*method_args, **method_kwargs)
         return [result for _ in self._get_indices(indices)]
 
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+    def env_is_wrapped(self, wrapper_class: type, indices: Indices = None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
 
-    def get_images(self):
+    def get_images(self) -> NoReturn:
         raise NotImplementedError("the native vector env does not render; render a single env "
                                   "(render_mode='rgb_array')")
 
@@ -182,7 +191,7 @@ class GymnasiumVecEnv(VecEnv):
         return out
 
 
-def make_sb3_vec_env(env_id: str, num_envs: int = 1, *, seed: int | None = None, **kwargs: Any):
+def make_sb3_vec_env(env_id: str, num_envs: int = 1, *, seed: int | None = None, **kwargs: Any) -> VecEnv:
     """An SB3 ``VecEnv`` for a navsim id: the native vector env (through
     :class:`GymnasiumVecEnv`) where the id has one, else SB3's ``make_vec_env``."""
     import gymnasium as gym
