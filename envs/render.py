@@ -413,7 +413,8 @@ def horizontal_error(est_lat: ArrayLike, est_lon: ArrayLike, lat: np.ndarray, lo
     return np.where(np.isfinite(err), err, np.nan)
 
 
-def tape_view(tape: EpisodeTape, k: int, actions: Sequence[ArrayLike], scale: ArrayLike | float, dt: float, duration_s: float, gnss_period_s: float,
+def tape_view(tape: EpisodeTape, k: int, actions: Sequence[ArrayLike], scale: ArrayLike | float, dt: float,
+              duration_s: float, gnss_period_s: float,
               strip: str = "error", status: str = "", stride_max: int = 2000) -> FrameView:
     """The view of the first k steps of an episode tape (truth per step, GNSS per epoch).
 

@@ -196,8 +196,8 @@ class TruthGenerator:
         breakpoint falls (within 1e-9 samples) on a sample boundary.
     """
 
-    def __init__(self, track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], h: float, orders: int, n_nodes: int,
-                 t_end: float, block_s: float = 1.0, cheb_nodes: int = 32, tol: float = 1e-13,
+    def __init__(self, track: Track, profile: SpeedProfile, oscillations: Sequence[Oscillation], h: float,
+                 orders: int, n_nodes: int, t_end: float, block_s: float = 1.0, cheb_nodes: int = 32, tol: float = 1e-13,
                  noise_tol: float = 1e-10, split_at_breakpoints: bool = True):
         self.track, self.profile, self.oscillations = track, profile, tuple(oscillations)
         self.h, self.orders, self.t_end = float(h), int(orders), float(t_end)

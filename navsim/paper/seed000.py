@@ -80,8 +80,6 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..types import FloatOrArray
-
 from ..rotations import quat_from_rotvec, quat_multiply, quat_to_rotvec
 from ..strapdown import CONING, POSITION, SCULLING
 from ..strapdown.coning import CONING_INPUTS
@@ -99,6 +97,7 @@ from ..strapdown.position import (
     partial_increment_smoothing,
 )
 from ..strapdown.sculling import SCULLING_INPUTS
+from ..types import FloatOrArray
 
 __all__ = [
     "CONING_PAPER",
@@ -378,8 +377,8 @@ def position_motion(rotating: bool) -> Motion:
     return Motion(omega=omega, accel=accel)
 
 
-def position_errors(motion: Motion, steps: Iterable[float], duration: float = 2.0, methods: Sequence[str] | None = None) -> dict[str,
-                    np.ndarray]:
+def position_errors(motion: Motion, steps: Iterable[float], duration: float = 2.0,
+                    methods: Sequence[str] | None = None) -> dict[str, np.ndarray]:
     """Norm of the final position error after ``duration`` for each method and step.
 
     The inputs V_i(k) and C(k) are exact (closed-form attitude, velocity by quadrature),

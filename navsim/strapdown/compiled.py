@@ -16,15 +16,19 @@ extra ``fast``; compiled on the first call and cached on disk), or None without 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from navsim.jit import available
 
+if TYPE_CHECKING:  # type hints only
+    from navsim.earth import EarthModel
+
 __all__ = ["available", "earth_constants", "kernel", "one_step", "run", "step_constants", "step_kernel"]
 
 
-def earth_constants(earth) -> np.ndarray:
+def earth_constants(earth: EarthModel) -> np.ndarray:
     """The Earth model's constants as the float array :func:`run` takes."""
     a, e2, rate, f = earth.a, earth.e2, earth.rate, earth.f
     m_som = rate**2 * a**2 * a * (1.0 - f) / earth.gm
@@ -32,7 +36,8 @@ def earth_constants(earth) -> np.ndarray:
                      1.0 if earth.name == "spherical" else 0.0, 1.0 if earth.f == 0.0 else 0.0])
 
 
-def _evaluate(c, lat, h, ve, vn, vu):
+def _evaluate(c: np.ndarray | tuple[float, ...], lat: float, h: float, ve: float, vn: float,
+              vu: float) -> tuple[float, float, float, float, float, float, float, float, float]:
     # radii, rates and gc = g - (2 w_ie + w_en) x v at one point (as ins.sequential_rows)
     a, e2, rate, f, g0, gamma_e, k_som, m_som = c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]
     spherical, flat = c[8] != 0.0, c[9] != 0.0
@@ -63,7 +68,9 @@ def _evaluate(c, lat, h, ve, vn, vu):
     return rnh, reh, cl, wen_e, wie_n + wen_n, wie_u + wen_u, gce, gcn, gcu
 
 
-def run(c, start, quat_body, dv_body, ds_body, exact, trapezoid, dt, pos, vel, quat, comp):
+def run(c: np.ndarray | tuple[float, ...], start: np.ndarray, quat_body: np.ndarray, dv_body: np.ndarray, ds_body: np.ndarray,
+        exact: bool, trapezoid: bool, dt: float, pos: np.ndarray, vel: np.ndarray, quat: np.ndarray,
+        comp: np.ndarray) -> None:
     """Integrate n steps; fills ``pos`` (3, n+1: rows lat, lon, h), ``vel`` (n+1, 3), ``quat`` (n+1, 4),
     ``comp`` (3,).
 
@@ -167,7 +174,9 @@ def step_constants(dt: float) -> np.ndarray:
                      t / 24.0, t * t, 0.5 * t * t, t / 6.0])
 
 
-def one_step(c, k, dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, gyro_bias, accel_bias, state, dt, out):
+def one_step(c: np.ndarray, k: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarray, dtheta_sub: np.ndarray,
+             dv_sub: np.ndarray, use_sub: bool, gyro_bias: np.ndarray, accel_bias: np.ndarray, state: np.ndarray,
+             dt: float, out: np.ndarray) -> None:
     """One navigation step of the error-state INS on the raw increments of the step.
 
     The float forms of :func:`navsim.strapdown.onestep.one_step_terms` (coning
@@ -277,11 +286,11 @@ def one_step(c, k, dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, gyro_bias, accel
 
 
 _run = run
-_compiled: list = []
-_compiled_step: list = []
+_compiled: list[Callable[..., Any]] = []
+_compiled_step: list[Callable[..., Any]] = []
 
 
-def kernel():
+def kernel() -> Callable[..., None] | None:
     """:func:`run` compiled by numba, or None without numba."""
     if not available():
         return None
@@ -295,7 +304,7 @@ def kernel():
     return _compiled[0]
 
 
-def step_kernel():
+def step_kernel() -> Callable[..., None] | None:
     """:func:`one_step` compiled by numba (calling the compiled :func:`run`), or None without numba."""
     if not available():
         return None

@@ -92,8 +92,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -318,9 +318,11 @@ def _run_compiled(state: InsState, quat_body: np.ndarray, dv_body: np.ndarray, d
                      dtype=float)
     pos, vel, quat, comp = np.empty((3, n + 1)), np.empty((n + 1, 3)), np.empty((n + 1, 4)), np.empty(3)
     exact = ds_body is not None
-    compiled.kernel()(compiled.earth_constants(earth), start, np.ascontiguousarray(quat_body),
-                      np.ascontiguousarray(dv_body), np.ascontiguousarray(ds_body) if exact else np.zeros((1, 3)),
-                      exact, rule == "trapezoid", float(dt), pos, vel, quat, comp)
+    run = compiled.kernel()
+    assert run is not None  # called only where compiled.available()
+    run(compiled.earth_constants(earth), start, np.ascontiguousarray(quat_body),
+        np.ascontiguousarray(dv_body), np.ascontiguousarray(ds_body) if exact else np.zeros((1, 3)),
+        exact, rule == "trapezoid", float(dt), pos, vel, quat, comp)
     return InsSolution(pos[0], pos[1], pos[2], vel, quat, tuple(comp.tolist()))  # rows: lat, lon, h
 
 

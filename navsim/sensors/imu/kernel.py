@@ -23,12 +23,17 @@ on disk) or None without numba. ``navsim.sensors.imu.apply.USE_KERNEL`` switches
 
 from __future__ import annotations
 
+from typing import Any, Callable
+
+import numpy as np
+
 from navsim.jit import available
 
 __all__ = ["available", "kernel", "white_noise_into"]
 
 
-def white_noise_into(z, slot0, factor, scale_density, h, base_r, base_rate, out_r, out_rate):
+def white_noise_into(z: np.ndarray, slot0: int, factor: np.ndarray, scale_density: np.ndarray, h: float,
+                     base_r: np.ndarray, base_rate: np.ndarray, out_r: np.ndarray, out_rate: np.ndarray) -> None:
     """Write ``base + white noise`` of one sensor for B members and n samples.
 
     z : (B, n, W) draws; slots ``slot0 .. slot0 + 3 R - 1`` of a row are the sensor's
@@ -55,7 +60,8 @@ def white_noise_into(z, slot0, factor, scale_density, h, base_r, base_rate, out_
                         out_rate[b, k, a] = base_rate[b, k, a] + noise / h
 
 
-def _white_noise_r4(z, slot0, factor, scale_density, h, base_r, base_rate, out_r, out_rate):
+def _white_noise_r4(z: np.ndarray, slot0: int, factor: np.ndarray, scale_density: np.ndarray, h: float,
+                    base_r: np.ndarray, base_rate: np.ndarray, out_r: np.ndarray, out_rate: np.ndarray) -> None:
     """:func:`white_noise_into` for R = 4, unrolled: the factor and the scales are read once
     (into locals, not reloaded past the output stores), one axis at a time; the same
     expressions in the same order as the general loop."""
@@ -78,10 +84,10 @@ def _white_noise_r4(z, slot0, factor, scale_density, h, base_r, base_rate, out_r
                 out_r[b, k, 3, a] = base_r[b, k, 3, a] + (f30 * z0 + f31 * z1 + f32 * z2 + f33 * z3) * s3
 
 
-_compiled: list = []
+_compiled: list[Callable[..., Any]] = []
 
 
-def kernel():
+def kernel() -> Callable[..., None] | None:
     """:func:`white_noise_into` compiled by numba, or None without numba."""
     if not available():
         return None
