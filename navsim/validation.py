@@ -35,13 +35,28 @@ A window after the episode end is accepted without a word: shortening a scenario
 
 :func:`check_seed` and :func:`check_steps` guard the run-time arguments (seed >= 0, a
 positive whole number of steps per chunk, and a chunk that fits in memory).
+
+Option checks shared by the estimators' option classes (one wording for every filter):
+
+* :func:`check_choice` / :func:`check_auto_none`: a name from a fixed set (the switches
+  ``lever_arm``, ``odometer``, ``baro``, ``atmosphere``, ``clock``: ``"auto"`` uses what the
+  context provides, ``"none"`` leaves the aid out);
+* :func:`check_positive_finite`: a real number ``0 < x < inf`` (periods, sigmas, factors);
+* :func:`check_optional_positive_finite`: the same, or None (a default taken from the context);
+* :func:`check_time_constant`: the correlation time ``tau`` of a first-order Gauss-Markov
+  process, ``0 < tau <= inf`` (``inf``: the random constant, ``phi = exp(-dt / tau) = 1``).
+
+A "real number" is an ``int`` or ``float`` (NumPy's float64 is a float; NumPy integers are
+accepted through :class:`numbers.Real`), never a ``bool`` nor a string; the value comes
+back as a ``float``. NaN fails every comparison and is refused.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import os
-from typing import TYPE_CHECKING, SupportsIndex
+from typing import TYPE_CHECKING, Collection, SupportsIndex
 
 from .errors import ConfigError
 
@@ -49,7 +64,8 @@ if TYPE_CHECKING:  # type hints only
     from .scenario import Scenario
 
 __all__ = ["validate_scenario", "check_seed", "check_steps", "check_episode_memory", "machine_memory_bytes",
-           "truth_block_bytes", "BYTES_PER_IMU_SAMPLE_NODE", "EPISODE_BYTES_PER_STEP"]
+           "truth_block_bytes", "BYTES_PER_IMU_SAMPLE_NODE", "EPISODE_BYTES_PER_STEP", "check_choice",
+           "check_auto_none", "check_positive_finite", "check_optional_positive_finite", "check_time_constant"]
 
 BYTES_PER_IMU_SAMPLE_NODE = 400
 """Working memory of the truth generator per IMU sample and quadrature node, bytes (an
@@ -182,3 +198,66 @@ def check_steps(n_steps: SupportsIndex, scenario: Scenario, field: str = "chunk"
         raise ConfigError(field, f"a number of steps whose IMU samples fit in memory (~{_gib(need)} "
                                  f"needed, the machine has {_gib(avail)}; use fewer steps per chunk)", n)
     return n
+
+
+# ---------------------------------------------------------------- estimator option checks
+def check_choice(field: str, value: object, choices: Collection[str]) -> str:
+    """``value`` if it is one of the names ``choices``, else :class:`ConfigError`.
+
+    >>> check_choice("update", "joint", ("joint", "sequential"))
+    'joint'
+    """
+    if not isinstance(value, str) or value not in choices:
+        expected = " or ".join(repr(c) for c in choices) if len(choices) <= 2 else f"one of {sorted(choices)}"
+        raise ConfigError(field, expected, value)
+    return value
+
+
+def check_auto_none(field: str, value: object) -> str:
+    """An aid switch: ``"auto"`` (use what the context provides) or ``"none"`` (leave it out).
+
+    >>> check_auto_none("lever_arm", "none")
+    'none'
+    """
+    return check_choice(field, value, ("auto", "none"))
+
+
+def _real(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return None
+    return float(value)
+
+
+def check_positive_finite(field: str, value: object, expected: str = "a positive finite number") -> float:
+    """``float(value)`` for a real number with ``0 < value < inf``, else :class:`ConfigError`
+    (``expected`` is the wording of the message, e.g. ``"a positive finite time, s"``).
+
+    >>> check_positive_finite("baro_period_s", 1)
+    1.0
+    """
+    number = _real(value)
+    if number is None or not (0.0 < number < math.inf):
+        raise ConfigError(field, expected, value)
+    return number
+
+
+def check_optional_positive_finite(field: str, value: object,
+                                   expected: str = "None or a positive finite number") -> float | None:
+    """None, or ``float(value)`` for a real number with ``0 < value < inf``."""
+    if value is None:
+        return None
+    return check_positive_finite(field, value, expected)
+
+
+def check_time_constant(field: str, value: object,
+                        expected: str = "a positive time constant, s (inf: a random constant)") -> float:
+    """A first-order Gauss-Markov correlation time: ``float(value)`` for ``0 < value <= inf``
+    (``inf`` is the random constant), else :class:`ConfigError`.
+
+    >>> check_time_constant("ionosphere_tau_s", float("inf"))
+    inf
+    """
+    number = _real(value)
+    if number is None or not number > 0.0:
+        raise ConfigError(field, expected, value)
+    return number

@@ -214,3 +214,14 @@ def test_simulator_batch_member_equals_the_single_simulator_with_a_lever_arm():
     alone = single.advance(400)
     for f in ("pseudorange_m", "pseudorange_rate_mps", "valid"):
         assert np.array_equal(getattr(chunk.member(1).gnss, f), getattr(alone.gnss, f))
+
+
+def test_nominal_specification_takes_the_lever_arm_as_three_numbers():
+    """The nominal GNSS specification carries the surveyed lever arm as 3 floats; any other
+    length is refused by name (it used to become a tuple of the wrong length)."""
+    model = gnss_mod.GnssErrorModel()
+    assert model.nominal(ARM).lever_arm_b_m == tuple(float(x) for x in ARM)
+    assert model.nominal(np.array(ARM)).lever_arm_b_m == tuple(float(x) for x in ARM)
+    for bad in ((1.0, 2.0), (1.0, 2.0, 3.0, 4.0), ()):
+        with pytest.raises(ConfigError, match="lever_arm_b_m"):
+            model.nominal(bad)

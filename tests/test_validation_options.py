@@ -1,0 +1,52 @@
+"""The estimator option checks of navsim.validation: accepted values come back as the
+documented type, every kind of bad value is refused with a ConfigError naming the field
+and the expectation (the values are the edge cases of each definition)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navsim.errors import ConfigError
+from navsim.validation import (
+    check_auto_none,
+    check_choice,
+    check_optional_positive_finite,
+    check_positive_finite,
+    check_time_constant,
+)
+
+
+def test_choice_and_auto_none():
+    assert check_auto_none("lever_arm", "auto") == "auto"
+    assert check_auto_none("lever_arm", "none") == "none"
+    assert check_choice("update", "sequential", ("joint", "sequential", "gated")) == "sequential"
+    for bad in ("Auto", "", None, 0, True, ("auto",)):
+        with pytest.raises(ConfigError, match=r"lever_arm: expected 'auto' or 'none'"):
+            check_auto_none("lever_arm", bad)
+    with pytest.raises(ConfigError, match=r"update: expected one of \['gated', 'joint', 'sequential'\]"):
+        check_choice("update", "fast", ("joint", "sequential", "gated"))
+
+
+def test_positive_finite():
+    for good in (1, 2.5, np.float64(0.25), np.int64(3), 5e-324, 1e308):
+        got = check_positive_finite("baro_period_s", good)
+        assert type(got) is float and got == float(good)
+    for bad in (0, 0.0, -1.0, -0.0, math.inf, -math.inf, math.nan, True, False, "1.0", None, [1.0]):
+        with pytest.raises(ConfigError, match="baro_period_s: expected a positive finite time, s"):
+            check_positive_finite("baro_period_s", bad, "a positive finite time, s")
+    assert check_optional_positive_finite("sigma", None) is None
+    assert check_optional_positive_finite("sigma", 2) == 2.0
+    with pytest.raises(ConfigError, match="sigma: expected None or a positive finite number"):
+        check_optional_positive_finite("sigma", math.inf)
+
+
+def test_time_constant_takes_inf_as_the_random_constant():
+    assert check_time_constant("tau", math.inf) == math.inf
+    assert math.exp(-0.1 / check_time_constant("tau", math.inf)) == 1.0  # phi = 1: a random constant
+    assert check_time_constant("tau", 1800) == 1800.0
+    for bad in (0.0, -5.0, -math.inf, math.nan, True, "60", None):
+        with pytest.raises(ConfigError, match=r"tau: expected a positive time constant, s \(inf: a random constant\)"):
+            check_time_constant("tau", bad)
