@@ -332,7 +332,7 @@ class _Interval:
         self.t = chunk.t[a:b]
         self.truth = _Truth(tr.lat[a:b], tr.lon[a:b], tr.h[a:b])
         self.gnss: _Epochs | None = None
-        self.receiver_outage = np.zeros(0, dtype=bool)
+        self.receiver_outage: np.ndarray = np.zeros(0, dtype=bool)
         if chunk.gnss is not None:
             local = np.asarray(chunk.gnss_step)
             sel = np.flatnonzero((local >= a) & (local < b))

@@ -252,7 +252,7 @@ class TrackRenderer:
         self.duration = duration
         step = nice_step(duration)
         sx0, sy0, sx1, sy1 = self.strip_box
-        for tick in np.arange(0.0, duration * (1 + 1e-9), step):
+        for tick in np.arange(0.0, duration * (1 + 1e-9), step).tolist():
             x = sx0 + tick / duration * (sx1 - sx0)
             img[sy1:sy1 + 4, int(round(x))] = _AXIS
             texts.append((x, sy1 + 5, _fmt(tick, step), "c"))
@@ -425,7 +425,7 @@ def tape_view(tape: EpisodeTape, k: int, actions: Sequence[ArrayLike], scale: Ar
     """
     n = min(k, tape.n, len(actions))
     stride = max(1, n // stride_max)
-    idx = np.arange(0, n, stride)
+    idx: np.ndarray = np.arange(0, n, stride)
     if n and idx[-1] != n - 1:
         idx = np.append(idx, n - 1)
     out_k = np.zeros(0, dtype=int)

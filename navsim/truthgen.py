@@ -235,7 +235,7 @@ class TruthGenerator:
         h = self.h
         span = self.block * h
         t_lim = (math.floor(self.t_end / span) + 2) * span
-        prof = np.asarray(getattr(self.profile, "breakpoints", np.zeros(0)), dtype=float).ravel()
+        prof: np.ndarray = np.asarray(getattr(self.profile, "breakpoints", np.zeros(0)), dtype=float).ravel()
         prof = prof[(prof > 0.0) & (prof < t_lim)]
         times = [prof]
         knots = np.sort(np.asarray(getattr(self.track, "knot_s", np.zeros(0)), dtype=float).ravel())

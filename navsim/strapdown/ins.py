@@ -323,7 +323,8 @@ def _run_compiled(state: InsState, quat_body: np.ndarray, dv_body: np.ndarray, d
     run(compiled.earth_constants(earth), start, np.ascontiguousarray(quat_body),
         np.ascontiguousarray(dv_body), np.ascontiguousarray(ds_body) if exact else np.zeros((1, 3)),
         exact, rule == "trapezoid", float(dt), pos, vel, quat, comp)
-    return InsSolution(pos[0], pos[1], pos[2], vel, quat, tuple(comp.tolist()))  # rows: lat, lon, h
+    k_lat, k_lon, k_h = comp.tolist()
+    return InsSolution(pos[0], pos[1], pos[2], vel, quat, (k_lat, k_lon, k_h))  # rows: lat, lon, h
 
 
 def sequential_rows(lat: float, lon: float, h: float, velocity_n: Sequence[float], quat_nb: Sequence[float],

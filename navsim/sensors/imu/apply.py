@@ -143,6 +143,8 @@ def _kernel_sensor(kern: Callable[..., Any], s_idx: int, sensor: SensorErrors, o
         wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
         base_rate = base_rate + (wave[:, None] * harm.amplitude[None, :])[None]
     n = out.shape[0]
+    out_r: np.ndarray
+    out_rate: np.ndarray
     if dest is None:
         out_r, out_rate = np.empty((members, n, order, 3)), np.empty((members, n, 3))
     else:
@@ -256,7 +258,7 @@ def apply_imu_errors_batch(
         return ImuOutput(empty, empty.copy(), np.zeros((members, 0, 3)), np.zeros((members, 0, 3))), states
 
     # One block per member and call; width fixed by R only.
-    z = np.empty((members, n, 6 * (order + 2)))
+    z: np.ndarray = np.empty((members, n, 6 * (order + 2)))
     for j, rng in enumerate(rngs):
         rng.standard_normal(out=z[j])
     # each slot used is copied once to a contiguous (member, sample, axis) array, so the
