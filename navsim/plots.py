@@ -196,7 +196,7 @@ def plot_bench_errors(samples: dict, per_seed: dict, path: str | Path, title: st
             ax.step(x, np.arange(1, x.size + 1) / x.size, where="post", color=f"C{j % 10}", label=name)
             positive.append(x[x > 0])
     pos = np.concatenate(positive) if positive else np.zeros(0)
-    if pos.size and pos.max() > 100 * max(pos.min(), 1e-12):
+    if pos.size and float(np.max(pos)) > 100 * max(float(np.min(pos)), 1e-12):
         ax.set_xscale("log")
     ax.axhline(0.5, color="0.6", lw=0.6)
     ax.axhline(0.95, color="0.6", lw=0.6)

@@ -133,7 +133,7 @@ class Signal:
         """x(t), shape (n, 3)."""
         return self.derivative(t, 0)
 
-    def multiple_integrals(self, t_start: FloatOrArray, dt: float, r_max: int) -> np.ndarray:
+    def multiple_integrals(self, t_start: FloatOrArray, dt: FloatOrArray, r_max: int) -> np.ndarray:
         """Increments (1.14) over [t_start, t_start + dt], orders 1..r_max: (n, r_max, 3).
 
         ``dt`` may be a scalar or an array broadcastable to ``t_start``.
