@@ -23,6 +23,7 @@ guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 __all__ = ["PlantSlave", "EstimatorSlave"]
 
 _LEVEL = {"info": Fmi3Status.ok, "warning": Fmi3Status.warning, "error": Fmi3Status.error}
+_OK = Fmi3StepResult()  # an immutable NamedTuple: one instance serves every accepted step
 
 
 class _Slave(SlaveValues, Fmi3Slave):
@@ -69,7 +70,7 @@ class _Slave(SlaveValues, Fmi3Slave):
             return Fmi3StepResult(status=Fmi3Status.error)
         self.time = current_time + step_size
         self.rt.store.set_time(self.time)
-        return Fmi3StepResult()
+        return _OK
 
     def get_float64(self, vrs):
         return self._get(vrs, "real")

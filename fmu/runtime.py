@@ -486,6 +486,11 @@ class PlantRuntime(_RuntimeBase):
         self._other_names = ["time.step", "time.steps_in_interval"] + [n for n in steps if n not in real]
         self._real_rows = self.store.segments(self._real_names)
         self._other_rows = self.store.segments(self._other_names)
+        # the same elements as one index each (a row is then one fancy assignment)
+        self._real_at = _elements(self._real_rows)
+        self._other_at = _elements(self._other_rows)
+        if any(arr is not self.store.int for arr, _, _ in self._other_rows):
+            raise FmuError("a per-step signal of the table is neither float64 nor int64: the plant serves those two")
         sizes = {v.name: v.size for v in self.store.table}
         self._column = {name: int(col) for names in (self._real_names, self._other_names)  # a name's first column
                         for name, col in zip(names, np.cumsum([0] + [sizes[n] for n in names])[:-1])}
@@ -560,11 +565,14 @@ class PlantRuntime(_RuntimeBase):
             if chunk is not self._chunk:
                 self._lay_out(chunk)
             real, other = self._rows
-            for arr, where, cols in self._real_rows:
-                arr[where] = real[i, cols]
-            for arr, where, cols in self._other_rows:
-                arr[where] = other[i, cols]
-            self._write_epoch(self._epoch_of[i])
+            store = self.store
+            store.real[self._real_at] = real[i]
+            store.int[self._other_at] = other[i]
+            epoch = self._epoch_of[i]
+            if epoch is None:
+                store.bool[self._new_epoch[1]] = False
+            else:
+                self._write_epoch(epoch)
         elif k:
             self._write_steps([step() for _ in range(k)])
             self.tick = new_tick
@@ -670,6 +678,14 @@ class PlantRuntime(_RuntimeBase):
         if self._chunk is not chunk:
             self._lay_out(chunk)
         self._write_epoch(epoch)
+
+
+def _elements(segments: list[tuple[np.ndarray, slice, slice]]) -> Any:
+    """The store elements of row segments of one typed array, in row order: the slice
+    itself for one run, else an index array."""
+    if len(segments) == 1:
+        return segments[0][1]
+    return np.concatenate([np.arange(where.start, where.stop) for _, where, _ in segments])
 
 
 def _truth_rows(truth: Any, components: list[tuple[str, str]]) -> np.ndarray:
