@@ -19,9 +19,13 @@ Rows
   with nothing else computed, into buffers allocated and written once before the timed
   draws (a fresh 75 MB array per window would time page faults too). No implementation
   that keeps each member's numbers equal to its single env (its own PCG64 stream, the
-  exact noise model) can step faster than this on one core.
+  exact noise model) can step faster than this on one core with NumPy's draws; the
+  simulator draws through a compiled loop when numba is installed (the same numbers,
+  :mod:`navsim.sensors.imu.kernel`), and the last row times those draws alone, the
+  limit of that path (the vector env can exceed the NumPy floor);
 
-Timing: alternating windows, the median of ``--rounds`` windows per row; the machine's
+Timing: interleaved windows (one window of every row per round, all envs built first),
+the median of ``--rounds`` windows per row; the machine's
 load average is printed (the machine may be shared). The vector envs and the floor are
 also given per CPU second of this process (``time.process_time``, all threads), the
 figure to compare with the floor on a loaded machine; with ``threads=2`` CPU time
@@ -71,11 +75,12 @@ def _vector_rate(venv, steps: int) -> tuple[float, float]:
     return steps * n / (time.process_time() - c0), steps * n / (time.perf_counter() - t0)
 
 
-def _draw_floor(n: int, steps: int, rounds: int) -> list[float]:
+def _draw_floor(n: int, steps: int, compiled: bool = False):
     """Member-steps per CPU second of drawing only the normals and uniforms of the paper
     scenario's sensors, for ``n`` members with their own generators, into buffers that are
     allocated and written once before timing (so no page faults are timed), one window per
-    round."""
+    round (the returned function times one window). ``compiled``: through the compiled group draws the simulator uses with numba
+    (:func:`navsim.sensors.imu.kernel.draws`, the same numbers) instead of NumPy's fills."""
     from navsim.scenario import load_scenario
     from navsim.simulator import Simulator
 
@@ -92,13 +97,22 @@ def _draw_floor(n: int, steps: int, rounds: int) -> list[float]:
             rng.standard_normal(out=gnss[j])
             rng.random(out=outages[j])
 
+    if compiled:
+        normal, uniform = _imu_kernel.draws("normal"), _imu_kernel.draws("uniform")
+
+        def draw():
+            normal(rngs, imu)
+            normal(rngs, gnss)
+            uniform(rngs, outages)
+
     draw()  # touch every page
-    rates = []
-    for _ in range(rounds):
+
+    def window() -> float:
         t0 = time.process_time()
         draw()
-        rates.append(n * steps / (time.process_time() - t0))
-    return rates
+        return n * steps / (time.process_time() - t0)
+
+    return window
 
 
 def main() -> None:
@@ -134,8 +148,8 @@ def main() -> None:
         vector_rows.append(("native vector env, N = 1024, 2 threads", 1024, "vector_entry_point", 2))
         vector_rows.append(("native vector env, N = 1024, NumPy IMU path (no numba)", 1024, "vector_entry_point", 1))
     cpu: dict[str, list[float]] = {}
+    envs = {}
     for label, n, mode, threads in vector_rows:
-        imu_apply.USE_KERNEL = "NumPy IMU path" not in label
         extra = {"threads": threads} if mode == "vector_entry_point" else {}
         venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False, **extra)
         venv.reset(seed=0)
@@ -143,14 +157,25 @@ def main() -> None:
         steps = 2 * chunk + 10 if not args.quick else chunk + 10
         if mode == "sync":
             steps = min(steps, 3000)
-        measured = [_vector_rate(venv, steps) for _ in range(rounds if n < 1024 or not args.quick else 1)]
-        rates[label] = [w for _, w in measured]
-        cpu[label] = [c for c, _ in measured]
-        venv.close()
-    imu_apply.USE_KERNEL = True
+        envs[label] = (venv, steps)
+        rates[label], cpu[label] = [], []
     floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
-    floor = _draw_floor(1024, 256, rounds)
-    cpu[floor_label] = floor
+    compiled_label = "the same draws through the compiled group draws (numba), N = 1024"
+    floors = {floor_label: _draw_floor(1024, 256)}
+    if _imu_kernel.available():
+        floors[compiled_label] = _draw_floor(1024, 256, compiled=True)
+    for _ in range(rounds):  # interleaved: one window of every row per round
+        for label, (venv, steps) in envs.items():
+            imu_apply.USE_KERNEL = "NumPy IMU path" not in label
+            c, w = _vector_rate(venv, steps)
+            rates[label].append(w)
+            cpu[label].append(c)
+        imu_apply.USE_KERNEL = True
+        for label, window in floors.items():
+            cpu.setdefault(label, []).append(window())
+    for venv, _ in envs.values():
+        venv.close()
+    floor = cpu[floor_label]
 
     kernel = "compiled (numba)" if _imu_kernel.available() else "NumPy (numba not installed)"
     print(f"IMU white-noise pass: {kernel}. Load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (the machine may be shared); median of "
@@ -160,7 +185,7 @@ def main() -> None:
     print("| env | steps/s (wall) | x CartPole | x single env | per CPU s | x floor (CPU) |")
     print("|---|---:|---:|---:|---:|---:|")
     floor_cpu = statistics.median(floor)
-    for label in [*rates, floor_label]:
+    for label in [*rates, *floors]:
         c = statistics.median(cpu[label]) if label in cpu else None
         cols = f"| {c:,.0f} | {c / floor_cpu:.2f} |" if c is not None else "| | |"
         if label in rates:

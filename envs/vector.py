@@ -26,9 +26,14 @@ Limits
 Where the time goes
     Each member draws its own standard normals (36 per IMU sample of the paper scenario:
     4 orders of white-noise integrals plus two bias drives, 2 sensors x 3 axes), exactly
-    as its single env does. On one core that draw alone bounds the rate; the vector env
-    runs at a large fraction of that bound (``benchmarks/bench_env.py`` prints both).
-    ``threads=2`` or more spreads the sensor-error pass over cores.
+    as its single env does. With numba installed the draws of a group of members run in
+    one compiled loop (:mod:`navsim.sensors.imu.kernel`: NumPy's ziggurat on each member's
+    own bit generator, the same numbers), faster than NumPy's own fill; the chunk buffers
+    are reused once no observation references them, and the members' sensor states are
+    carried as arrays between chunks. ``benchmarks/bench_env.py`` prints the rate beside
+    both draw limits (NumPy's fill and the compiled draws alone). ``threads=2`` or more
+    splits the members' IMU pass over worker threads while the calling thread generates
+    the GNSS and outage epochs; the step itself (reward, info) stays on the calling thread.
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
 
     Parameters are those of :class:`~navsim.envs.navigation.NavigationEnv` plus
     ``num_envs``; ``chunk_steps`` defaults to about 2^18 / N (memory bound); ``threads``
-    (default 1) spreads the sensor-error pass over threads (the numbers do not change).
+    (default 1) spreads the IMU error pass over threads (the numbers do not change).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": 20}

@@ -601,6 +601,13 @@ class ObservationCodec:
         return obs
 
 
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (no copy; strided rows are fine for the observations)."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
+
+
 class BatchObservations:
     """Per-step observations of N lockstep members (see :meth:`ObservationCodec.encode_batch_chunk`)."""
 
@@ -618,10 +625,10 @@ class BatchObservations:
         self._epoch_at = epoch_at.tolist()
         self._t = np.broadcast_to(chunk.t[:, None, None], (c, n_env, 1))
         self._new_epoch = np.broadcast_to((epoch_at >= 0).astype(np.int8)[:, None, None], (c, n_env, 1))
-        self._imu = (("dtheta_r", _frozen(imu.dtheta_r.reshape(n_env, c, -1))),
-                     ("dv_r", _frozen(imu.dv_r.reshape(n_env, c, -1))),
-                     ("dtheta_sub", _frozen(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))),
-                     ("dv_sub", _frozen(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))))
+        self._imu = (("dtheta_r", _read_only(imu.dtheta_r.reshape(n_env, c, -1))),
+                     ("dv_r", _read_only(imu.dv_r.reshape(n_env, c, -1))),
+                     ("dtheta_sub", _read_only(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))),
+                     ("dv_sub", _read_only(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))))
         self._odometer = _frozen(chunk.odometer.ds_m.reshape(n_env, c, 1)) if codec.layout.odometer else None
         self._baro = _frozen(chunk.baro.altitude_m.reshape(n_env, c, 1)) if codec.layout.baro else None
         self._no_gnss = {"gnss_valid": _frozen(np.zeros((n_env, k), dtype=np.int8)),

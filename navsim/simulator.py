@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterator, Sequence
 
@@ -78,6 +79,9 @@ IMU_GROUP = 32
 
 IMU_TILE = 8192
 """About this many member-samples per call of the batched IMU error model (cache size)."""
+
+OUTPUT_POOL = 2
+"""Sets of chunk output buffers a :class:`SimulatorBatch` keeps for reuse."""
 
 
 # ============================================================================ outputs
@@ -348,6 +352,23 @@ class Simulator:
             )
 
     # -- state -----------------------------------------------------------------------
+    _imu_state: imu_mod.ImuState | None = None
+    _imu_row: tuple[imu_mod.BatchImuState, int] | None = None  # set by a batch: row j of its state
+
+    @property
+    def imu_state(self) -> imu_mod.ImuState:
+        """The IMU error state after the steps generated so far (:class:`navsim.sensors.imu.ImuState`)."""
+        if self._imu_state is None:
+            if self._imu_row is None:
+                raise RuntimeError("call Simulator.reset(seed) before stepping")
+            batch_state, j = self._imu_row
+            self._imu_state = batch_state.member(j)
+        return self._imu_state
+
+    @imu_state.setter
+    def imu_state(self, state: imu_mod.ImuState) -> None:
+        self._imu_state, self._imu_row = state, None
+
     @property
     def step_index(self) -> int:
         """Number of navigation steps generated since the last reset."""
@@ -477,96 +498,115 @@ class Simulator:
         return start, list(self.chunks(chunk_steps))
 
 
-def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor) -> imu_mod.ImuOutput:
+def _unreferenced_count() -> int:
+    """``sys.getrefcount`` of an array held by a list only, read as :func:`_output_buffers` reads it."""
+    bufs = [np.empty(0)]
+    return sys.getrefcount(bufs[0])
+
+
+_UNREFERENCED = _unreferenced_count()
+
+
+def _output_buffers(pool: list | None, shapes: tuple) -> list[np.ndarray]:
+    """Arrays of ``shapes`` for a chunk's IMU output: a set of ``pool`` that nothing else
+    references any more (no view of it is alive: every view and every chunk, observation
+    or record made from one holds a reference to its arrays), else new arrays (and the
+    pool, at most :data:`OUTPUT_POOL` sets, keeps them). Reusing written pages saves the
+    page faults of fresh memory (the kernel zeroes every new page on first touch)."""
+    if pool is None:
+        return [np.empty(shape) for shape in shapes]
+    for i, bufs in enumerate(pool):
+        # free: as many references as right after its allocation (the pool's list only;
+        # measured the same way, whatever the interpreter counts for the call itself)
+        if all(bufs[k].shape == shapes[k] and sys.getrefcount(bufs[k]) <= _UNREFERENCED
+               for k in range(len(shapes))):
+            pool.append(pool.pop(i))  # most recently used last
+            return bufs
+    bufs = [np.empty(shape) for shape in shapes]
+    pool.append(bufs)
+    if len(pool) > OUTPUT_POOL:
+        pool.pop(0)  # the least recently used set (still referenced elsewhere, or of another shape)
+    return bufs
+
+
+def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor,
+                pool: list | None = None) -> imu_mod.ImuOutput | _Pending:
     """The IMU errors of every member, in cache-sized tiles of members x samples.
 
     Members are taken in groups of at most :data:`IMU_GROUP` and the samples in blocks
     of about :data:`IMU_TILE` member-samples per call; the error model is chunk-invariant
     (one draw block per call, the recursive state carried), so the tiling changes no
     number. With an executor the groups run on threads (NumPy's generators and ufunc
-    loops release the GIL).
+    loops release the GIL, and so do the compiled draws and white-noise pass): the groups
+    are split into one contiguous run per thread and the result is a :class:`_Pending`,
+    so that the caller's thread generates the other sensors meanwhile. ``pool``: output
+    buffers to reuse (:func:`_output_buffers`).
     """
     members, ns = len(sims), len(t_start)
     model = sims[0].imu_model
     group = min(members, IMU_GROUP)
     span = max(64, IMU_TILE // group)
-    out = imu_mod.ImuOutput(np.empty((members, *dtheta_true.shape)), np.empty((members, *dv_true.shape)),
-                            np.empty((members, ns, 3)), np.empty((members, ns, 3)))
+    shapes = ((members, *dtheta_true.shape), (members, *dv_true.shape), (members, ns, 3), (members, ns, 3))
+    out = imu_mod.ImuOutput(*_output_buffers(pool, shapes))
 
     def run(g0: int) -> None:
         part = sims[g0:g0 + group]
-        states, rngs = [sim.imu_state for sim in part], [sim.rngs["imu"] for sim in part]
+        rngs = [sim.rngs["imu"] for sim in part]
+        state = _group_state(part)
         for s0 in range(0, ns, span):
             s = slice(s0, s0 + span)
             rows = slice(g0, g0 + len(part))
             dest = imu_mod.ImuOutput(out.dtheta_r[rows, s], out.dv_r[rows, s], out.rate_b[rows, s],
                                      out.accel_b[rows, s])  # views: written in place
-            _, states = imu_mod.apply_imu_errors_batch(
-                t_start[s], h, dtheta_true[s], dv_true[s], omega_end[s], force_end[s], model, states, rngs,
+            _, state = imu_mod.apply_imu_errors_batch_state(
+                t_start[s], h, dtheta_true[s], dv_true[s], omega_end[s], force_end[s], model, state, rngs,
                 out=dest)
-        for sim, state in zip(part, states):
-            sim.imu_state = state
+        for j, sim in enumerate(part):  # row j of the group's state, made an ImuState when read
+            sim._imu_state, sim._imu_row = None, (state, j)
 
     starts = range(0, members, group)
     if executor is not None and len(starts) > 1:
-        for future in [executor.submit(run, g0) for g0 in starts]:
-            future.result()
-    else:
-        for g0 in starts:
-            run(g0)
+        # one task per thread, each a contiguous run of groups (its members' streams)
+        workers = min(executor._max_workers, len(starts))
+        parts = [list(starts)[i::workers] for i in range(workers)]
+        futures = [executor.submit(lambda part=part: [run(g0) for g0 in part]) for part in parts]
+        return _Pending(out, futures)
+    for g0 in starts:
+        run(g0)
     return out
 
 
-@limited  # small products: single-threaded BLAS (navsim.threads)
-def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
-    """Generate the next steps of simulators in lockstep on one scenario and truth.
+def _group_state(part: list[Simulator]) -> imu_mod.BatchImuState:
+    """The IMU states of a group of members as one batch state: the batch state they are
+    the rows of, in order, when they still are (the previous chunk's group), else stacked."""
+    row = part[0]._imu_row
+    if row is not None and row[0].size == len(part):
+        state = row[0]
+        if all(sim._imu_row is not None and sim._imu_row[0] is state and sim._imu_row[1] == j
+               for j, sim in enumerate(part)):
+            return state
+    states = [sim.imu_state for sim in part]
+    if any(s.sample_index != states[0].sample_index for s in states):
+        raise ConfigError("states", "IMU states at the same sample_index (lockstep)",
+                          sorted({s.sample_index for s in states}))
+    return imu_mod.BatchImuState.of(states)
 
-    The truth, the satellite geometry and the deterministic outage masks are computed
-    once; each simulator's sensor errors come from its own states and streams through the
-    batched sensor functions, so simulator j gets exactly the numbers it would get alone.
-    """
-    lead = sims[0]
-    for sim in sims:
-        sim._require_reset()
-    k0 = lead._step
-    if any(sim._step != k0 for sim in sims):
-        raise RuntimeError("simulators out of lockstep")
-    timing = lead.timing
-    n = min(int(n_steps), timing.steps - k0)
-    if n <= 0:
-        raise RuntimeError("the episode is over: call reset()")
-    members = len(sims)
-    m, h, dt = timing.samples_per_step, timing.imu_period_s, timing.nav_period_s
-    steps = np.arange(k0, k0 + n)
-    # sample start times from integer ticks (never a float accumulator)
-    sample_index = k0 * m + np.arange(n * m)
-    t_start = sample_index * h
-    t_end_steps = (steps + 1) * dt
-    # --- ideal IMU increments and truth at sample ends (block Chebyshev or direct), once
-    ideal = lead.truthgen.samples(k0 * m, n * m)
-    truth = ideal.truth if m == 1 else _every(ideal.truth, m)
-    dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
-    omega_end, force_end = ideal.omega_end, ideal.force_end
-    if lead._imu_error_free:
-        def shared(a):
-            return np.broadcast_to(a, (members, *a.shape))
-        out = imu_mod.ImuOutput(shared(dtheta_true), shared(dv_true), shared(omega_end), shared(force_end))
-    else:
-        out = _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor)
-    R = dtheta_true.shape[1]
-    dtheta_sample = out.dtheta_r.reshape(members, n, m, R, 3)
-    dv_sample = out.dv_r.reshape(members, n, m, R, 3)
-    if m == 1:
-        dtheta_step, dv_step = dtheta_sample[:, :, 0], dv_sample[:, :, 0]
-    else:
-        dtheta_step = imu_mod.compose_multiple_integrals(dtheta_sample.reshape(members * n, m, R, 3), h)
-        dv_step = imu_mod.compose_multiple_integrals(dv_sample.reshape(members * n, m, R, 3), h)
-        dtheta_step = dtheta_step.reshape(members, n, R, 3)
-        dv_step = dv_step.reshape(members, n, R, 3)
-    imu = ImuBlock(
-        dtheta_r=dtheta_step, dv_r=dv_step, dtheta_sample=dtheta_sample, dv_sample=dv_sample,
-        rate_b=out.rate_b.reshape(members, n, m, 3), accel_b=out.accel_b.reshape(members, n, m, 3),
-    )
+
+class _Pending:
+    """IMU outputs being computed on worker threads; :meth:`result` waits for them."""
+
+    def __init__(self, out: imu_mod.ImuOutput, futures: list) -> None:
+        self.out, self.futures = out, futures
+
+    def result(self) -> imu_mod.ImuOutput:
+        for future in self.futures:
+            future.result()
+        return self.out
+
+
+def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
+    """GNSS epochs and outages, odometer and barometer of a chunk (each member's own
+    streams and states; no IMU state is read or written)."""
     # --- GNSS epochs at the end of every steps_per_epoch-th step
     epoch_steps = np.flatnonzero((steps + 1) % timing.steps_per_epoch == 0)
     gnss_epochs, receiver_outage = None, np.zeros((members, len(epoch_steps)), dtype=bool)
@@ -619,6 +659,65 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None) -> ChunkBatch:
             truth.h, lead.baro_model, [sim.baro_state for sim in sims], [sim.rngs["baro"] for sim in sims], dt=dt)
         for sim, b_state in zip(sims, baro_states):
             sim.baro_state = b_state
+    return epoch_steps, gnss_epochs, receiver_outage, odometer, baro
+
+
+@limited  # small products: single-threaded BLAS (navsim.threads)
+def _generate(sims: list[Simulator], n_steps: int, executor=None, pool: list | None = None) -> ChunkBatch:
+    """Generate the next steps of simulators in lockstep on one scenario and truth.
+
+    The truth, the satellite geometry and the deterministic outage masks are computed
+    once; each simulator's sensor errors come from its own states and streams through the
+    batched sensor functions, so simulator j gets exactly the numbers it would get alone.
+    """
+    lead = sims[0]
+    for sim in sims:
+        sim._require_reset()
+    k0 = lead._step
+    if any(sim._step != k0 for sim in sims):
+        raise RuntimeError("simulators out of lockstep")
+    timing = lead.timing
+    n = min(int(n_steps), timing.steps - k0)
+    if n <= 0:
+        raise RuntimeError("the episode is over: call reset()")
+    members = len(sims)
+    m, h, dt = timing.samples_per_step, timing.imu_period_s, timing.nav_period_s
+    steps = np.arange(k0, k0 + n)
+    # sample start times from integer ticks (never a float accumulator)
+    sample_index = k0 * m + np.arange(n * m)
+    t_start = sample_index * h
+    t_end_steps = (steps + 1) * dt
+    # --- ideal IMU increments and truth at sample ends (block Chebyshev or direct), once
+    ideal = lead.truthgen.samples(k0 * m, n * m)
+    truth = ideal.truth if m == 1 else _every(ideal.truth, m)
+    dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
+    omega_end, force_end = ideal.omega_end, ideal.force_end
+    if lead._imu_error_free:
+        def shared(a):
+            return np.broadcast_to(a, (members, *a.shape))
+        imu_out: imu_mod.ImuOutput | _Pending = imu_mod.ImuOutput(shared(dtheta_true), shared(dv_true),
+                                                                  shared(omega_end), shared(force_end))
+    else:  # with an executor, on its threads while this one generates the other sensors
+        imu_out = _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor, pool)
+    try:
+        epoch_steps, gnss_epochs, receiver_outage, odometer, baro = _other_sensors(
+            sims, lead, truth, steps, t_end_steps, timing, dt, members)
+    finally:  # the IMU threads are done before anything is returned or raised
+        out = imu_out.result() if isinstance(imu_out, _Pending) else imu_out
+    R = dtheta_true.shape[1]
+    dtheta_sample = out.dtheta_r.reshape(members, n, m, R, 3)
+    dv_sample = out.dv_r.reshape(members, n, m, R, 3)
+    if m == 1:
+        dtheta_step, dv_step = dtheta_sample[:, :, 0], dv_sample[:, :, 0]
+    else:
+        dtheta_step = imu_mod.compose_multiple_integrals(dtheta_sample.reshape(members * n, m, R, 3), h)
+        dv_step = imu_mod.compose_multiple_integrals(dv_sample.reshape(members * n, m, R, 3), h)
+        dtheta_step = dtheta_step.reshape(members, n, R, 3)
+        dv_step = dv_step.reshape(members, n, R, 3)
+    imu = ImuBlock(
+        dtheta_r=dtheta_step, dv_r=dv_step, dtheta_sample=dtheta_sample, dv_sample=dv_sample,
+        rate_b=out.rate_b.reshape(members, n, m, 3), accel_b=out.accel_b.reshape(members, n, m, 3),
+    )
     for sim in sims:
         sim._step += n
     return ChunkBatch(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
@@ -646,8 +745,15 @@ class SimulatorBatch:
     size : int
         Number of members B.
     threads : int
-        Threads for the sensor-error pass (default 1). Each member's numbers are the
-        same whatever the number of threads.
+        Worker threads for the IMU error pass (default 1: none), each taking a contiguous
+        run of members while the calling thread generates the GNSS, outage, odometer and
+        barometer data. Each member's numbers are the same whatever the number of threads.
+
+    The chunks' IMU output arrays come from a pool of :data:`OUTPUT_POOL` sets, reused
+    once nothing references a set any more (a kept chunk or observation keeps its set
+    out of the pool's reach), and the members' IMU states are carried between chunks as
+    one :class:`navsim.sensors.imu.BatchImuState` per group (a member's ``imu_state`` is
+    made from its row when read).
 
     Examples
     --------
@@ -677,6 +783,7 @@ class SimulatorBatch:
             raise ConfigError("motion.profile", "scripted motion for a simulator batch", "external")
         self.scenario = scenario
         self.members = [base] + [copy.copy(base) for _ in range(int(size) - 1)]
+        self._pool: list = []  # the chunks' IMU output buffers, reused once unreferenced
 
     def __len__(self) -> int:
         return len(self.members)
@@ -702,7 +809,7 @@ class SimulatorBatch:
 
     def advance(self, n_steps: int = 1) -> ChunkBatch:
         """Generate the next ``n_steps`` steps of every member (fewer at the episode's end)."""
-        return _generate(self.members, n_steps, self._executor)
+        return _generate(self.members, n_steps, self._executor, self._pool)
 
     def close(self) -> None:
         """Stop the worker threads (if any); idempotent."""

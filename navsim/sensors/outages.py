@@ -58,6 +58,8 @@ import numpy as np
 
 from ..errors import ConfigError, check_nonnegative
 from ..types import FloatOrArray
+from .imu import apply as _imu_apply
+from .imu import kernel as _imu_kernel
 
 __all__ = ["OutageModel", "OutageState", "visibility", "visibility_batch", "canyon_mask_elevation"]
 
@@ -382,8 +384,12 @@ def visibility_batch(
     dt = np.where(np.isfinite(dt), dt, 0.0)
 
     u = np.empty((members, k, 1 + m))
-    for j, rng in enumerate(rngs):
-        rng.random(out=u[j])  # one block per call and receiver, row = epoch
+    group_draw = _imu_kernel.draws("uniform") if k and _imu_apply.USE_KERNEL else None
+    if group_draw is not None:
+        group_draw(rngs, u)  # one compiled call, the same numbers (navsim.sensors.imu.kernel)
+    else:
+        for j, rng in enumerate(rngs):
+            rng.random(out=u[j])  # one block per call and receiver, row = epoch
 
     receiver_outage = np.zeros(k, dtype=bool)
     for start, end in model.windows_s:
@@ -437,5 +443,14 @@ def visibility_batch(
     if not k:
         return visible, receiver_outage, states
     sv_last = sv_last.reshape(members, m)
-    new_states = [OutageState(float(t[-1]), bool(rx_last[j]), sv_last[j]) for j in range(members)]
+    rows = np.array(sv_last, dtype=bool, copy=True)  # one read-only copy, row j for receiver j
+    rows.setflags(write=False)
+    t_last = float(t[-1])
+    new_states = []
+    for j, rx in enumerate(np.asarray(rx_last, dtype=bool).tolist()):
+        state = object.__new__(OutageState)
+        object.__setattr__(state, "t_s", t_last)
+        object.__setattr__(state, "receiver_out", rx)
+        object.__setattr__(state, "satellite_out", rows[j])
+        new_states.append(state)
     return visible, receiver_outage, new_states

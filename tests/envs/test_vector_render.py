@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pytest
 
@@ -154,4 +156,35 @@ def test_large_score_record_warns_and_tapes_share_the_truth():
     venv.reset(seed=0)
     first, second = venv.tapes[0], venv.tapes[1]
     assert second.lat is first.lat and np.all(np.isfinite(first.lat[:10]))
+    venv.close()
+
+
+def test_reused_chunk_buffers_keep_held_observations_and_the_numbers():
+    """score=False: the chunks' IMU buffers are reused once nothing references them (the
+    pool of SimulatorBatch), yet an observation the caller still holds keeps its values and
+    every member's observations stay those of its single env, chunk after chunk."""
+    n, chunk = 2, 40
+    venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                        chunk_steps=chunk, score=False, timing={"duration_s": 3.0})
+    singles = [gym.make("navsim/PaperRail-v0", score=False, timing={"duration_s": 3.0}) for _ in range(n)]
+    venv.reset(seed=5)
+    for j, env in enumerate(singles):
+        env.reset(seed=5 + j)
+    action = np.zeros((n, 9))
+    held, held_copy = None, None
+    seen: list = []  # weak references to every buffer set's first array met (identity, not id())
+    for k in range(6 * chunk):
+        obs, *_ = venv.step(action)
+        for j, env in enumerate(singles):
+            assert _same({key: v[j] for key, v in obs.items()}, env.step(action[j])[0])
+        if k == chunk + 3:  # an observation of the second chunk, kept through the later ones
+            held = obs
+            held_copy = {key: v.copy() for key, v in obs.items()}
+        for bufs in venv.unwrapped.batch._pool:
+            if not any(ref() is bufs[0] for ref in seen):
+                seen.append(weakref.ref(bufs[0]))
+    assert _same(held, held_copy)
+    # 7 chunks (the reset's and 6 more) from 3 buffer sets: the two the pool alternates
+    # between and one more while the held observation kept one busy
+    assert len(venv.unwrapped.batch._pool) <= 2 and len(seen) == 3
     venv.close()

@@ -22,6 +22,8 @@ from ...earth import WGS84, EarthModel
 from ...errors import ConfigError, check_nonnegative
 from ...types import FloatOrArray
 from .._common import frozen_array
+from ..imu import apply as _imu_apply
+from ..imu import kernel as _imu_kernel
 from .constants import C_LIGHT
 from .constellation import Constellation
 from .orbits import SkyGeometry, sky_geometry
@@ -253,6 +255,22 @@ class GnssState:
         object.__setattr__(self, "multipath", frozen_array(self.multipath))
 
     @classmethod
+    def _batch(cls, t_s: float, bias: np.ndarray, drift: np.ndarray, multipath: np.ndarray) -> list[GnssState]:
+        """The states of B receivers after a batched call: ``multipath`` (B, m) copied once
+        to a read-only array, receiver j gets row j as a view (no per-state checks)."""
+        rows = np.array(multipath, dtype=float, copy=True)
+        rows.setflags(write=False)
+        out = []
+        for j, (b, d) in enumerate(zip(bias.tolist(), drift.tolist())):
+            state = object.__new__(cls)
+            object.__setattr__(state, "t_s", t_s)
+            object.__setattr__(state, "clock_bias_m", b)
+            object.__setattr__(state, "clock_drift_mps", d)
+            object.__setattr__(state, "multipath", rows[j])
+            out.append(state)
+        return out
+
+    @classmethod
     def initial(
         cls, model: GnssErrorModel, constellation: Constellation, rng: np.random.Generator
     ) -> GnssState:
@@ -435,8 +453,12 @@ def simulate_epochs_batch(
         raise ConfigError("geometry", f"a SkyGeometry for ({k}, {m}) epochs x satellites", geo.range_m.shape)
 
     draws = np.empty((members, k, GnssErrorModel.draw_width(m)))
-    for j, rng in enumerate(rngs):
-        rng.standard_normal(out=draws[j])
+    group_draw = _imu_kernel.draws("normal") if k and _imu_apply.USE_KERNEL else None
+    if group_draw is not None:
+        group_draw(rngs, draws)  # one compiled call, the same numbers (navsim.sensors.imu.kernel)
+    else:
+        for j, rng in enumerate(rngs):
+            rng.standard_normal(out=draws[j])
     z_clock, z_code = draws[:, :, :2], draws[:, :, 2 : 2 + m]
     z_doppler, z_mp = draws[:, :, 2 + m : 2 + 2 * m], draws[:, :, 2 + 2 * m :]
 
@@ -502,4 +524,4 @@ def simulate_epochs_batch(
     )
     if not k:
         return epochs, states
-    return epochs, [GnssState(float(t[-1]), float(b[j]), float(d[j]), x[j]) for j in range(members)]
+    return epochs, GnssState._batch(float(t[-1]), b, d, x)

@@ -107,7 +107,13 @@ References
    noise terms.
 """
 
-from .apply import QUANTIZATION_BLOCK, apply_imu_errors, apply_imu_errors_batch, first_order_recursion
+from .apply import (
+    QUANTIZATION_BLOCK,
+    apply_imu_errors,
+    apply_imu_errors_batch,
+    apply_imu_errors_batch_state,
+    first_order_recursion,
+)
 from .error_model import ImuErrorModel, SensorErrors, VibrationHarmonic
 from .integrals import (
     MAX_ORDER,
@@ -118,7 +124,7 @@ from .integrals import (
     white_noise_integral_covariance,
 )
 from .presets import PRESET_NAMES, imu_preset, is_error_free, nominal_imu, nominal_noise
-from .state import ImuOutput, ImuState
+from .state import BatchImuState, ImuOutput, ImuState
 
 __all__ = [
     "is_error_free",
@@ -134,9 +140,11 @@ __all__ = [
     "SensorErrors",
     "ImuErrorModel",
     "ImuState",
+    "BatchImuState",
     "ImuOutput",
     "apply_imu_errors",
     "apply_imu_errors_batch",
+    "apply_imu_errors_batch_state",
     "imu_preset",
     "nominal_noise",
     "nominal_imu",

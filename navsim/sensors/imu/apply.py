@@ -17,7 +17,7 @@ from ...errors import ConfigError
 from . import kernel as _imu_kernel
 from .error_model import ImuErrorModel, SensorErrors, level_lsb
 from .integrals import MAX_ORDER, check_h, harmonic_multiple_integrals, unit_noise_factor
-from .state import ImuOutput, ImuState
+from .state import BatchImuState, ImuOutput, ImuState
 
 USE_KERNEL = True
 """Use the compiled white-noise pass when numba is installed (:mod:`navsim.sensors.imu.kernel`;
@@ -118,17 +118,15 @@ def _check_truth_inputs(t_start: ArrayLike, dtheta_r: ArrayLike, dv_r: ArrayLike
     return t_start, dtheta_r, dv_r, omega_b, f_b
 
 
-def _kernel_sensor(kern: Callable[..., Any], s_idx: int, sensor: SensorErrors, out: NDArray, rate: NDArray,
-                   z: NDArray, order: int, members: int, turn_on: NDArray, gm_start: NDArray, sigma_gm: NDArray,
-                   rrw_start: NDArray, rrw_gain: NDArray, varying: NDArray, h_r_fact: NDArray, t_start: NDArray,
-                   t_end: NDArray, h: float, noise_factor: NDArray, scale_density: NDArray,
-                   dest: tuple[NDArray, NDArray] | None = None) -> tuple[NDArray, NDArray]:
-    """One sensor's outputs (B, n, R, 3), (B, n, 3) with the compiled white-noise pass.
+def _kernel_base(s_idx: int, sensor: SensorErrors, out: NDArray, rate: NDArray, order: int, turn_on: NDArray,
+                 gm_start: NDArray, sigma_gm: NDArray, rrw_start: NDArray, rrw_gain: NDArray, varying: NDArray,
+                 h_r_fact: NDArray, t_start: NDArray, t_end: NDArray, h: float) -> tuple[NDArray, NDArray]:
+    """One sensor's noise-free outputs (1 or B, n, R, 3), (1 or B, n, 3) for the compiled passes.
 
     ``out`` (n, R, 3) and ``rate`` (n, 3) are the noise-free values shared by the members
     (after scale factor, misalignment and g-sensitivity). The bias and vibration terms are
-    added in the order of the NumPy path (bias, then each harmonic, then the noise), never
-    in place (``out`` may be the caller's array). ``dest``: (out_r, out_rate) to write into.
+    added in the order of the NumPy path (bias, then each harmonic), never in place
+    (``out`` may be the caller's array).
     """
     base_r, base_rate = out[None], rate[None]
     constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
@@ -142,7 +140,16 @@ def _kernel_sensor(kern: Callable[..., Any], s_idx: int, sensor: SensorErrors, o
         base_r = base_r + (integrals[:, :, None] * harm.amplitude[None, None, :])[None]
         wave = np.sin(2.0 * math.pi * harm.frequency_hz * t_end + harm.phase_rad)
         base_rate = base_rate + (wave[:, None] * harm.amplitude[None, :])[None]
-    n = out.shape[0]
+    return base_r, base_rate
+
+
+def _kernel_sensor(kern: Callable[..., Any], s_idx: int, z: NDArray, order: int, members: int, base_r: NDArray,
+                   base_rate: NDArray, h: float, noise_factor: NDArray, scale_density: NDArray,
+                   dest: tuple[NDArray, NDArray] | None = None) -> tuple[NDArray, NDArray]:
+    """One sensor's outputs (B, n, R, 3), (B, n, 3) with the compiled white-noise pass over
+    the drawn block ``z``; ``base_*`` from :func:`_kernel_base`. ``dest``: (out_r, out_rate)
+    to write into."""
+    n = base_r.shape[1]
     out_r: np.ndarray
     out_rate: np.ndarray
     if dest is None:
@@ -249,22 +256,66 @@ def apply_imu_errors_batch(
     if any(s.sample_index != index for s in states):
         raise ConfigError("states", "states at the same sample_index (lockstep)",
                           sorted({s.sample_index for s in states}))
+    if len(rngs) != len(states):
+        raise ConfigError("rngs", f"one generator per state ({len(states)})", len(rngs))
+    output, new_state = apply_imu_errors_batch_state(t_start, h, dtheta_r, dv_r, omega_b, f_b, model,
+                                                     BatchImuState.of(states), rngs, out=out)
+    return output, (states if new_state.sample_index == index else new_state.members())
+
+
+def apply_imu_errors_batch_state(
+    t_start: ArrayLike,
+    h: float,
+    dtheta_r: ArrayLike,
+    dv_r: ArrayLike,
+    omega_b: ArrayLike,
+    f_b: ArrayLike,
+    model: ImuErrorModel,
+    state: BatchImuState,
+    rngs: Sequence[np.random.Generator],
+    out: ImuOutput | None = None,
+) -> tuple[ImuOutput, BatchImuState]:
+    """:func:`apply_imu_errors_batch` on the members' states as one :class:`BatchImuState`
+    (no per-member state objects; the simulator batch carries its states this way).
+
+    The same numbers: :func:`apply_imu_errors_batch` stacks its states and calls this.
+    ``rngs``: one generator per row of ``state``. Returns the output and the new state.
+    """
+    h = check_h(h)
+    rngs = list(rngs)
+    members = state.size
+    if len(rngs) != members:
+        raise ConfigError("rngs", f"one generator per member ({members})", len(rngs))
+    index = state.sample_index
     t_start, dtheta_r, dv_r, omega_b, f_b = _check_truth_inputs(t_start, dtheta_r, dv_r, omega_b, f_b)
     n, order = dtheta_r.shape[:2]
-    members = len(states)
 
     if n == 0:
         empty = np.zeros((members, 0, order, 3))
-        return ImuOutput(empty, empty.copy(), np.zeros((members, 0, 3)), np.zeros((members, 0, 3))), states
+        return ImuOutput(empty, empty.copy(), np.zeros((members, 0, 3)), np.zeros((members, 0, 3))), state
 
-    # One block per member and call; width fixed by R only.
-    z: np.ndarray = np.empty((members, n, 6 * (order + 2)))
-    for j, rng in enumerate(rngs):
-        rng.standard_normal(out=z[j])
+    sensors = (model.gyro, model.accel)
+    sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
+    rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
+    gm_start = state.bias_gauss_markov
+    rrw_start = state.bias_random_walk
+    gm_on = bool(sigma_gm.any() or gm_start.any())
+    rrw_on = bool(rrw_gain.any() or rrw_start.any())
+    density = np.stack([s.white_noise_density for s in sensors])  # (2, 3)
+    lsb_levels = level_lsb(model, h, order)
+    kern = _imu_kernel.kernel() if USE_KERNEL else None
+    # One block per member and call; width fixed by R only. With numba the blocks are drawn
+    # by one compiled loop (navsim.sensors.imu.kernel.draw_kernel: the same numbers).
+    z: np.ndarray = np.empty((members, n, 2, order + 2, 3))
+    draw = _imu_kernel.draw_kernel() if kern is not None else None
+    if draw is not None:
+        draw(rngs, z.reshape(members, n, -1))
+    else:
+        for j, rng in enumerate(rngs):
+            rng.standard_normal(out=z[j].reshape(n, -1))
     # each slot used is copied once to a contiguous (member, sample, axis) array, so the
     # elementwise passes below run over long contiguous arrays (the numbers are those
     # of the draw order above)
-    z = z.reshape(members, n, 2, order + 2, 3)
     slots: dict[tuple[int, int], NDArray] = {}
 
     def slot(s_idx: int, k: int) -> NDArray:
@@ -273,28 +324,23 @@ def apply_imu_errors_batch(
             slots[s_idx, k] = np.ascontiguousarray(z[:, :, s_idx, k])
         return slots[s_idx, k]
 
-    sensors = (model.gyro, model.accel)
     r = np.arange(1, order + 1)
     h_r_fact = h**r / np.array([math.factorial(int(k)) for k in r], dtype=float)  # h^r / r!
-    turn_on = np.stack([s.turn_on_bias for s in states])  # (B, 2, 3)
-    gm_start = np.stack([s.bias_gauss_markov for s in states])
-    rrw_start = np.stack([s.bias_random_walk for s in states])
+    turn_on = state.turn_on_bias  # (B, 2, 3)
 
     # Gauss-Markov and rate-random-walk biases: exact discrete propagation between
     # samples, held constant within each sample (see the module docstring). Switched
     # off (zero sigma and state) they stay exactly zero and nothing is computed.
-    sigma_gm = np.stack([s.bias_instability_sigma for s in sensors])
     tau = np.stack([s.bias_correlation_time_s for s in sensors])
-    rrw_gain = np.stack([s.rate_random_walk for s in sensors]) * math.sqrt(h)
     zero_bias = np.broadcast_to(0.0, (members, n, 2, 3))  # read-only zeros, not allocated (the states copy)
-    if sigma_gm.any() or gm_start.any():
+    if gm_on:
         phi = np.exp(-h / tau)
         gm_coef = sigma_gm * np.sqrt(-np.expm1(-2.0 * h / tau))  # (2, 3)
         gm_drive = gm_coef[None, None] * z[:, :, :, order]  # (B, n, 2, 3)
         gm_next = _first_order_recursion(phi, gm_drive, gm_start)  # b_1..b_n
     else:
         gm_next = zero_bias
-    if rrw_gain.any() or rrw_start.any():
+    if rrw_on:
         rrw_drive = rrw_gain[None, None] * z[:, :, :, order + 1]
         rrw_next = _first_order_recursion(np.ones((2, 3)), rrw_drive, rrw_start)
     else:
@@ -305,16 +351,13 @@ def apply_imu_errors_batch(
         varying = np.concatenate((gm_start[:, None], gm_next[:, :-1]), axis=1)
         varying += np.concatenate((rrw_start[:, None], rrw_next[:, :-1]), axis=1)
 
-    density = np.stack([s.white_noise_density for s in sensors])  # (2, 3)
     noise_factor = unit_noise_factor(order)
     noise_scale = math.sqrt(h) * h ** (r - 1)  # white-noise integral r scales as h^(r - 1/2)
-    lsb_levels = level_lsb(model, h, order)
     rows = list(range(order)) + [MAX_ORDER]
-    acc_new = np.stack([s.quant_accumulator for s in states])  # (B, 2, MAX_ORDER + 1, 3)
-    count_new = np.stack([s.quant_count for s in states])
+    acc_new = state.quant_accumulator.copy()  # (B, 2, MAX_ORDER + 1, 3), updated by the quantizer
+    count_new = state.quant_count.copy()
     t_end = t_start + h
-    kern = _imu_kernel.kernel() if USE_KERNEL else None
-    dest_output = out
+    dest_output = out  # (the name ``out`` is reused below)
     dest_all = None if out is None else ((out.dtheta_r, out.rate_b), (out.dv_r, out.accel_b))
     outputs: list[tuple[np.ndarray, np.ndarray]] = []
     for s_idx, (sensor, true_r, true_rate) in enumerate(
@@ -334,10 +377,11 @@ def apply_imu_errors_batch(
         if kern is not None and np.any(density[s_idx]) and not lsb_levels[s_idx, 0] > 0.0:
             # compiled white-noise pass (navsim.sensors.imu.kernel): the same terms in the
             # same order as below, without repeating the shared values per member
+            base = _kernel_base(s_idx, sensor, out_r, rate, order, turn_on, gm_start, sigma_gm, rrw_start, rrw_gain,
+                                varying, h_r_fact, t_start, t_end, h)
+            scale_density = noise_scale[:, None] * density[s_idx][None, :]
             dest = None if dest_all is None else dest_all[s_idx]
-            outputs.append(_kernel_sensor(kern, s_idx, sensor, out_r, rate, z, order, members, turn_on, gm_start,
-                                          sigma_gm, rrw_start, rrw_gain, varying, h_r_fact, t_start, t_end, h,
-                                          noise_factor, noise_scale[:, None] * density[s_idx][None, :], dest))
+            outputs.append(_kernel_sensor(kern, s_idx, z, order, members, *base, h, noise_factor, scale_density, dest))
             continue
         # from here on the members differ; ``out_r`` in the layout (R, B, n, 3)
         out_r = np.repeat(out_r.transpose(1, 0, 2)[:, None], members, axis=1)
@@ -392,8 +436,7 @@ def apply_imu_errors_batch(
             out_r = out_r.transpose(1, 2, 0, 3)  # (B, n, R, 3)
         outputs.append((out_r, rate))
 
-    new_states = ImuState._batch(index + n, [s.turn_on_bias for s in states], gm_next[:, -1], rrw_next[:, -1],
-                                 acc_new, count_new)
+    new_states = BatchImuState._owned(index + n, turn_on, gm_next[:, -1], rrw_next[:, -1], acc_new, count_new)
     if dest_all is None:
         return ImuOutput(dtheta_r=outputs[0][0], dv_r=outputs[1][0], rate_b=outputs[0][1],
                          accel_b=outputs[1][1]), new_states

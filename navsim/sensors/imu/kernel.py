@@ -16,9 +16,19 @@ not contract a product and a sum into a fused multiply-add unless asked (no ``fa
 The NumPy path makes a pass over all members and samples per term, the kernel one pass in
 all, reading the draws once and writing each output once.
 
-:func:`white_noise_into` is plain Python in the subset numba compiles; :func:`kernel`
-returns it compiled (numba, optional extra ``fast``; compiled on the first call and cached
-on disk) or None without numba. ``navsim.sensors.imu.apply.USE_KERNEL`` switches it off.
+The block of standard normals itself (one row of ``6 (R + 2)`` per sample) is drawn as
+:func:`normals_into` does: numba implements NumPy's ziggurat method for
+``Generator.standard_normal`` on the same bit generator, so a member's numbers and its
+generator's state afterwards are those of ``rng.standard_normal(out=block)``; compiled,
+the ziggurat is inlined around the bit generator's calls (NumPy's fill calls a
+distribution function per element), and :func:`draw_kernel` draws the blocks of a whole
+group of members in one call (:mod:`navsim.sensors.imu._bitgen`). The draws are most of
+the model's cost.
+
+:func:`white_noise_into` and :func:`normals_into` are plain Python in the subset numba
+compiles; :func:`kernel` and :func:`draw_kernel` return them compiled (numba, optional
+extra ``fast``; compiled on the first call and cached on disk) or None without numba.
+``navsim.sensors.imu.apply.USE_KERNEL`` switches both off.
 """
 
 from __future__ import annotations
@@ -29,7 +39,7 @@ import numpy as np
 
 from navsim.jit import available
 
-__all__ = ["available", "kernel", "white_noise_into"]
+__all__ = ["available", "kernel", "draw_kernel", "draws", "white_noise_into", "normals_into"]
 
 
 def white_noise_into(z: np.ndarray, slot0: int, factor: np.ndarray, scale_density: np.ndarray, h: float,
@@ -84,17 +94,62 @@ def _white_noise_r4(z: np.ndarray, slot0: int, factor: np.ndarray, scale_density
                 out_r[b, k, 3, a] = base_r[b, k, 3, a] + (f30 * z0 + f31 * z1 + f32 * z2 + f33 * z3) * s3
 
 
-_compiled: list[Callable[..., Any]] = []
+def normals_into(rng: np.random.Generator, out: np.ndarray) -> None:
+    """Fill the C-contiguous 2-D array ``out`` row by row with standard normals from ``rng``.
+
+    The numbers and the generator's state afterwards are those of
+    ``rng.standard_normal(out=out)``: numba implements NumPy's ziggurat on the same bit
+    generator (``tests/sensors/test_imu_kernel.py`` checks it), without NumPy's per-element
+    calls through the bit generator's function pointers.
+    """
+    for k in range(out.shape[0]):
+        for c in range(out.shape[1]):
+            out[k, c] = rng.standard_normal()
 
 
-def kernel() -> Callable[..., None] | None:
-    """:func:`white_noise_into` compiled by numba, or None without numba."""
+_compiled: dict[str, Callable[..., Any]] = {}
+
+
+def _compile() -> bool:
     if not available():
-        return None
+        return False
     if not _compiled:
         import numba
 
         global _white_noise_r4
         _white_noise_r4 = numba.njit(cache=True, nogil=True)(_white_noise_r4)
-        _compiled.append(numba.njit(cache=True, nogil=True)(white_noise_into))
-    return _compiled[0]
+        _compiled["white_noise_into"] = numba.njit(cache=True, nogil=True)(white_noise_into)
+        from . import _bitgen
+
+        def draw_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
+            """``rngs[b].standard_normal(out=out[b])`` for every b, in one compiled call."""
+            _bitgen.normals_into_many(*_bitgen.addresses(rngs), out)
+
+        def uniform_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
+            """``rngs[b].random(out=out[b])`` for every b, in one compiled call."""
+            _bitgen.uniforms_into_many(*_bitgen.addresses(rngs), out)
+
+        _compiled["draw_many"] = draw_many
+        _compiled["uniform_many"] = uniform_many
+    return True
+
+
+def draws(kind: str = "normal") -> Callable[..., None] | None:
+    """The group draw of ``kind`` ("normal": :func:`draw_kernel`, "uniform": the same for
+    ``Generator.random``) when numba is installed, else None (draw with NumPy; the same
+    numbers). The callers skip it when ``apply.USE_KERNEL`` is off."""
+    if not _compile():
+        return None
+    return _compiled["draw_many" if kind == "normal" else "uniform_many"]
+
+
+def kernel() -> Callable[..., None] | None:
+    """:func:`white_noise_into` compiled by numba, or None without numba."""
+    return _compiled["white_noise_into"] if _compile() else None
+
+
+def draw_kernel() -> Callable[..., None] | None:
+    """``draw(rngs, out)``: :func:`normals_into` of every generator into ``out[b]``
+    (C-contiguous (B, n, W)) in one compiled call (:mod:`navsim.sensors.imu._bitgen`), or
+    None without numba."""
+    return _compiled["draw_many"] if _compile() else None

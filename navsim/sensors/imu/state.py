@@ -126,6 +126,64 @@ class ImuState:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
+class BatchImuState:
+    """The :class:`ImuState` of B lockstep members as (B, ...) arrays (the batched error
+    model's working form: no per-member objects between calls).
+
+    ``turn_on_bias``, ``bias_gauss_markov``, ``bias_random_walk``: (B, 2, 3);
+    ``quant_accumulator``, ``quant_count``: (B, 2, MAX_ORDER + 1, 3); one ``sample_index``.
+    Row j is member j's :class:`ImuState` (:meth:`member`). The arrays are read-only.
+    """
+
+    sample_index: int
+    turn_on_bias: NDArray[np.float64]
+    bias_gauss_markov: NDArray[np.float64]
+    bias_random_walk: NDArray[np.float64]
+    quant_accumulator: NDArray[np.float64]
+    quant_count: NDArray[np.float64]
+
+    @property
+    def size(self) -> int:
+        """Number of members B."""
+        return int(self.turn_on_bias.shape[0])
+
+    @classmethod
+    def of(cls, states: Sequence[ImuState]) -> BatchImuState:
+        """Stack B states (at one ``sample_index``; the caller checks it)."""
+        arrays = []
+        for name in ("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator", "quant_count"):
+            a = np.stack([getattr(s, name) for s in states])
+            a.setflags(write=False)
+            arrays.append(a)
+        return cls(int(states[0].sample_index), *arrays)
+
+    @classmethod
+    def _owned(cls, sample_index: int, turn_on: NDArray, gauss_markov: NDArray, random_walk: NDArray,
+               accumulator: NDArray, count: NDArray) -> BatchImuState:
+        """From arrays of the right shapes: each copied once (unless it is the read-only
+        ``turn_on`` of a batch state already) and made read-only."""
+        arrays = []
+        for a in (turn_on, gauss_markov, random_walk, accumulator, count):
+            if a.flags.writeable or a.base is not None and a is not turn_on:
+                a = np.array(a, dtype=float, copy=True)
+                a.setflags(write=False)
+            arrays.append(a)
+        return cls(int(sample_index), *arrays)
+
+    def member(self, j: int) -> ImuState:
+        """Member j's :class:`ImuState` (read-only views of row j)."""
+        state = object.__new__(ImuState)
+        for name in ("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator", "quant_count"):
+            object.__setattr__(state, name, getattr(self, name)[j])
+        object.__setattr__(state, "sample_index", self.sample_index)
+        return state
+
+    def members(self) -> list[ImuState]:
+        """Every member's :class:`ImuState`."""
+        return [self.member(j) for j in range(self.size)]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
 class ImuOutput:
     """IMU measurements with errors for ``n`` samples.
 
