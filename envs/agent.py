@@ -21,7 +21,7 @@ import numpy as np
 
 from navsim.errors import ConfigError
 from navsim.signals import Layout, ObservationCodec
-from navsim.types import Measurement
+from navsim.types import Estimate, Measurement
 
 __all__ = ["EstimateAction", "EstimatorAgent", "evaluate"]
 
@@ -94,7 +94,22 @@ class EstimatorAgent:
         if not (callable(getattr(estimator, "reset", None)) and callable(getattr(estimator, "step", None))):
             raise ConfigError("estimator", "an object with reset(context, prior) and step(measurement)", estimator)
         self.estimator = estimator
-        self.last_estimate = None
+        self._last: tuple | None = None
+
+    @property
+    def last_estimate(self) -> Estimate | None:
+        """The solution of the last :meth:`act` as an :class:`~navsim.types.Estimate` (None
+        before the first). Through the fast path (``step_row``) it is built on reading,
+        with an empty ``extra``."""
+        last = self._last
+        if last is None or isinstance(last, Estimate):
+            return last
+        t, row, cov, nis, dof = last
+        lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
+        est = Estimate(t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov, nis=nis,
+                       nis_dof=dof)
+        self._last = est
+        return est
 
     def reset(self, info: dict) -> None:
         """Reset the estimator from the env's reset info (context, prior, channel order)."""
@@ -106,6 +121,9 @@ class EstimatorAgent:
         self._scale = np.asarray(info.get("action_scale", np.ones(9)), dtype=float)
         self._step = 0
         self._estimator_step = self.estimator.step
+        self._step_row = _row_stepping(self.estimator)
+        self._view = _StepView(self.codec.layout)
+        self._last = None
 
     def measurement(self, obs: dict) -> Measurement:
         """The :class:`~navsim.types.Measurement` of one observation (with the wheel-odometer
@@ -115,17 +133,83 @@ class EstimatorAgent:
         return m
 
     def act(self, obs: dict) -> EstimateAction:
-        """The estimator's solution for the observed step (with its extras)."""
-        m = self._decode(obs, self._step)  # self.measurement(obs), without a call of its own
-        self._step += 1
+        """The estimator's solution for the observed step (with its extras).
+
+        With an estimator that has the fast path ``step_row``
+        (:class:`navsim.estimators.base.RowStepping`: the same numbers as ``step``), a step
+        without a GNSS epoch is handed over as views of the observation's arrays in a
+        reused measurement object (no :class:`~navsim.types.Measurement` and no
+        :class:`~navsim.types.Estimate` built); otherwise the decoded measurement goes to
+        ``step``.
+        """
+        k = self._step
+        self._step = k + 1
+        step_row = self._step_row
         clock = time.process_time
+        if step_row is None:
+            m = self._decode(obs, k)  # self.measurement(obs), without a call of its own
+            t0 = clock()
+            estimate = self._estimator_step(m)
+            cpu = clock() - t0
+            self._last = estimate
+            return EstimateAction.of(estimate, cpu, self._scale)
+        if obs["gnss_new_epoch"][0]:
+            m = self._decode(obs, k)
+        else:
+            m = self._view.fill(obs, k)
         t0 = clock()
-        estimate = self._estimator_step(m)
+        row, cov, nis, dof = step_row(m)
         cpu = clock() - t0
-        self.last_estimate = estimate
-        return EstimateAction.of(estimate, cpu, self._scale)
+        self._last = (m.t, row, cov, nis, dof)
+        out = (row / self._scale).view(EstimateAction)
+        out.extras = (cov, nis, dof or 0, cpu)
+        return out
 
     __call__ = act
+
+
+class _StepView:
+    """The fields of :class:`~navsim.types.Measurement` for a step without a GNSS epoch,
+    refilled for every such step with views of the observation's arrays (the decoding of
+    :meth:`navsim.signals.ObservationCodec.decode`, without building a value)."""
+
+    __slots__ = ("step", "t", "dt", "dtheta_r", "dv_r", "dtheta_sub", "dv_sub", "gnss", "odometer_ds_m",
+                 "baro_alt_m", "_odometer", "_baro")
+
+    def __init__(self, layout: Layout) -> None:
+        self.dt = float(layout.nav_period_s)
+        self.gnss = None
+        self.odometer_ds_m = None
+        self.baro_alt_m = None
+        self._odometer = bool(layout.odometer)
+        self._baro = bool(layout.baro)
+
+    def fill(self, obs: dict, step: int) -> "_StepView":
+        self.step = step
+        self.t = float(obs["t"][0])
+        self.dtheta_r = obs["dtheta_r"].reshape(-1, 3)
+        self.dv_r = obs["dv_r"].reshape(-1, 3)
+        self.dtheta_sub = obs["dtheta_sub"].reshape(-1, 3)
+        self.dv_sub = obs["dv_sub"].reshape(-1, 3)
+        if self._odometer:
+            odometer = obs.get("odometer_ds")
+            self.odometer_ds_m = None if odometer is None else float(odometer[0])
+        if self._baro:
+            baro = obs.get("baro_alt")
+            self.baro_alt_m = None if baro is None else float(baro[0])
+        return self
+
+
+def _row_stepping(estimator: Any) -> Any:
+    """The estimator's ``step_row`` when it is the fast form of its own ``step`` (both from
+    the same class: a subclass that overrides ``step`` alone keeps the ``step`` path)."""
+    fast = getattr(estimator, "step_row", None)
+    if not callable(fast):
+        return None
+    owners = {}
+    for attr in ("step", "step_row"):
+        owners[attr] = next((c for c in type(estimator).__mro__ if attr in c.__dict__), None)
+    return fast if owners["step"] is not None and owners["step"] is owners["step_row"] else None
 
 
 def _as_agent(agent_or_estimator: Any):

@@ -204,7 +204,7 @@ from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import body_rate_from_hpr_rates, mat_nb_from_hpr
 from ..types import FloatOrArray
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior, StepRow
 from .tightly import slant_maps
 
 if TYPE_CHECKING:  # type hints only
@@ -661,7 +661,7 @@ class AlongTrackFilter(NoiseScalable):
         self.diverged = False
         self._bad_epochs = 0
         self.n_updates = 0
-        self.last_extra: dict = {}
+        self._last_extra: dict | None = {}
 
     def _start_interval(self) -> None:
         """Freeze F at the start of a covariance propagation interval."""
@@ -913,6 +913,32 @@ class AlongTrackFilter(NoiseScalable):
             block = self._P_block = (k, self._covariance_at(np.arange(k, k + rest)))
         return block[1][k - block[0]]
 
+    def _output_row(self, s: float, v: float, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_output_one` without the leading step axis: row (9,), covariance (9, 9)."""
+        kern = _map_row_kernel()
+        if kern is None:
+            sol, cov = self._output_one(s, v, P)
+            return sol[0], cov[0]
+        table = self.table
+        sol = np.empty(9)
+        J = np.zeros((9, self.n_x))
+        kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol[None], J)
+        floor = self.__dict__.get("_floor")
+        if floor is None:
+            floor = self._output_floor()
+        cov = J @ P @ J.T + floor
+        if self.options.attitude_floor_rad is None:
+            cov[6:9, :] = np.nan
+            cov[:, 6:9] = np.nan
+        return sol, cov
+
+    def _output_floor(self) -> np.ndarray:
+        """The floors of :meth:`_outputs` (9, 9), fixed by the options."""
+        opt = self.options
+        att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
+        self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3))
+        return self._floor
+
     def _output_one(self, s: float, v: float, P: np.ndarray):
         """:meth:`_outputs` of one state on Python floats (the same operations); the map
         interpolation and the Jacobian J in one compiled call when numba is installed
@@ -925,9 +951,7 @@ class AlongTrackFilter(NoiseScalable):
             kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol, J)
             floor = self.__dict__.get("_floor")
             if floor is None:  # the floors of _outputs, fixed by the options
-                att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
-                floor = self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2,
-                                                         att_floor], 3))
+                floor = self._output_floor()
             cov = (J @ P @ J.T + floor)[None]
             if opt.attitude_floor_rad is None:
                 cov[:, 6:9, :] = np.nan
@@ -1002,20 +1026,47 @@ class AlongTrackFilter(NoiseScalable):
         self._start_interval()
         return self.P, nis, dof
 
-    def step(self, measurement: Measurement) -> Estimate:
-        """Process one navigation step (see the module docstring for the equations)."""
-        dv_y, ds2_y = self._along_increments(np.asarray(measurement.dv_r, dtype=float), self.dt)
-        P, nis, dof = self._advance(float(dv_y), float(ds2_y), measurement.gnss, measurement.step,
+    def _step_one(self, measurement: Measurement) -> tuple[np.ndarray, np.ndarray, float | None, int]:
+        """One navigation step: (solution row (9,), covariance (9, 9), nis, dof)."""
+        dv = np.asarray(measurement.dv_r, dtype=float).tolist()  # body-y increments, floats (_along_increments)
+        dv_y = dv[0][1]
+        ds2_y = dv[1][1] if len(dv) >= 2 else 0.5 * self.dt * dv_y
+        P, nis, dof = self._advance(dv_y, ds2_y, measurement.gnss, measurement.step,
                                     getattr(measurement, "odometer_ds_m", None))
         if P is None:  # between covariance boundaries: P(k) of the interval, computed ahead
             P = self._interval_covariance(self.k_in, measurement.step)
         self.t = measurement.t
-        sol, cov = self._output_one(float(self.x[0]), float(self.x[1]), P)
-        self.last_extra = self._extra(nis, dof)
-        s = sol[0]
+        x = self.x.tolist()
+        sol, cov = self._output_row(x[0], x[1], P)
+        self._last_extra = None
+        return sol, cov, nis, dof
+
+    @property
+    def last_extra(self) -> dict:
+        """The diagnostics of the last step (s, speed, bias, sigmas, clock, ...), gathered
+        on reading."""
+        extra = self._last_extra
+        if extra is None:
+            extra = self._last_extra = self._extra(None, 0)
+        return extra
+
+    @last_extra.setter
+    def last_extra(self, value: dict) -> None:
+        self._last_extra = value
+
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
+        :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers, no
+        :class:`Estimate` built."""
+        sol, cov, nis, dof = self._step_one(measurement)
+        return sol, cov, nis, dof if nis is not None else None
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """Process one navigation step (see the module docstring for the equations)."""
+        s, cov, nis, dof = self._step_one(measurement)
         lat, lon, h, _, _, _, heading, pitch, roll = s.tolist()  # floats, not NumPy scalars
         return Estimate(t=measurement.t, lat=lat, lon=lon, h=h, velocity_n=s[3:6], heading=heading, pitch=pitch,
-                        roll=roll, covariance=cov[0], nis=nis, nis_dof=dof if nis is not None else None,
+                        roll=roll, covariance=cov, nis=nis, nis_dof=dof if nis is not None else None,
                         extra=self.last_extra)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:

@@ -67,6 +67,9 @@ __all__ = [
     "Prior",
     "Estimate",
     "Estimator",
+    "RowStepping",
+    "StepRow",
+    "row_of",
     "NoiseScalable",
     "NoiseScaling",
     "MeasurementBatch",
@@ -86,6 +89,35 @@ class Estimator(Protocol):
     def step(self, measurement: Measurement) -> Estimate:
         """Process one navigation step and return the solution at its end."""
         ...
+
+
+StepRow = tuple[np.ndarray, "np.ndarray | None", "float | None", "int | None"]
+"""``(row, covariance, nis, nis_dof)`` of one step: ``row`` (9,) as
+:meth:`NavSolution.as_action`, ``covariance`` (9, 9) or None, the NIS of an update made in
+the step and its degrees of freedom (None when no update happened)."""
+
+
+@runtime_checkable
+class RowStepping(Protocol):
+    """The step-wise fast path (optional; the five INS/track filters have it).
+
+    ``step_row(measurement)`` processes one navigation step exactly as ``step`` does (the
+    same numbers, the same state afterwards) and returns the solution as a
+    :data:`StepRow` instead of an :class:`Estimate`: no per-step diagnostics (``extra``)
+    are built. ``row`` and ``covariance`` belong to the caller (arrays made for this call).
+    The measurement may be any object with the attributes of :class:`Measurement`; a step
+    without a GNSS epoch does not keep a reference to it. Used by
+    :class:`navsim.envs.EstimatorAgent` and the estimator FMU.
+    """
+
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """Process one navigation step; ``(row (9,), covariance (9, 9) or None, nis, nis_dof)``."""
+        ...
+
+
+def row_of(estimate: Estimate) -> StepRow:
+    """The :data:`StepRow` of an :class:`Estimate` (``step_row`` through ``step``)."""
+    return estimate.as_action(), estimate.covariance, estimate.nis, estimate.nis_dof
 
 
 # An estimator may also offer ``step_batch(batch: MeasurementBatch) -> EstimateBatch``,

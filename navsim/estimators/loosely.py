@@ -149,7 +149,17 @@ from ._inserror import (
     lever_arm_terms,
     nis_threshold,
 )
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from .base import (
+    Context,
+    Estimate,
+    EstimateBatch,
+    Measurement,
+    MeasurementBatch,
+    NoiseScalable,
+    Prior,
+    StepRow,
+    row_of,
+)
 from .tightly import atmosphere_delays
 
 __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_model"]
@@ -430,6 +440,42 @@ class LooselyCoupledEkf(NoiseScalable):
         self.lever_arm_b = np.array(arm, dtype=float)
         self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
 
+    def _ins_only_step(self, m: Measurement) -> bool:
+        """True when step ``m`` makes no update (no GNSS epoch, no odometer or barometer update due)."""
+        return m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0) and (
+            self._baro is None or getattr(m, "baro_alt_m", None) is None or (m.step + 1) % self._baro_steps != 0)
+
+    def _ins_step(self, m: Measurement, eng: ErrorStateIns) -> tuple[np.ndarray, np.ndarray]:
+        """A step without an update on the engine's one-step path: row (9,), covariance (9, 9)."""
+        row, cov = eng.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+        if self._odo is not None:
+            odo = getattr(m, "odometer_ds_m", None)
+            self._odometer_accumulate(row[None], None if odo is None else (odo,), 0, 1)
+        if eng.diverged:
+            self.diverged = True
+        return row, cov
+
+    def _ins_extra(self, eng: ErrorStateIns) -> dict:
+        extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
+        if self._fix_index is not None:
+            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
+        if self._odo is not None:
+            extra["odometer_scale"] = float(eng.aux[0])
+            extra["odometer_nis"] = self.odometer_nis
+        if self._baro is not None:
+            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
+        return extra
+
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
+        :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers, and no
+        :class:`Estimate` built for a step without an update."""
+        eng = self.engine
+        if eng is not None and self._ins_only_step(measurement):
+            row, cov = self._ins_step(measurement, eng)
+            return row, cov, None, None
+        return row_of(self.step(measurement))
+
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step: the batch path on a batch of one at update steps (GNSS epoch,
         end of an odometer interval), the engine's one-step INS path in between (the same
@@ -440,23 +486,11 @@ class LooselyCoupledEkf(NoiseScalable):
             raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
         odo = getattr(m, "odometer_ds_m", None)
         baro = getattr(m, "baro_alt_m", None)
-        if m.gnss is None and (self._odo is None or (m.step + 1) % self._odo_steps != 0) \
-                and (self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
-            rows, cov = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
-            if self._odo is not None:
-                self._odometer_accumulate(rows, None if odo is None else (odo,), 0, 1)
-            self.diverged = self.diverged or eng.diverged
-            lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
-            extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
-            if self._fix_index is not None:
-                extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
-            if self._odo is not None:
-                extra["odometer_scale"] = float(eng.aux[0])
-                extra["odometer_nis"] = self.odometer_nis
-            if self._baro is not None:
-                extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
-            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov[0],
-                            extra=extra)
+        if self._ins_only_step(m):
+            row, cov = self._ins_step(m, eng)
+            lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
+            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov,
+                            extra=self._ins_extra(eng))
         if m.gnss is not None and self._odo is None and not self._with_lever and (
                 self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
             return self._epoch_step(m)

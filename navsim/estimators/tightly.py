@@ -176,7 +176,16 @@ from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import quat_to_mat
 from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable
+from .base import (
+    Context,
+    Estimate,
+    EstimateBatch,
+    Measurement,
+    MeasurementBatch,
+    NoiseScalable,
+    StepRow,
+    row_of,
+)
 
 __all__ = [
     "TightlyCoupledEkf",
@@ -786,7 +795,20 @@ class _TightlyCoupled(NoiseScalable):
         self._bad = 0
         self.cholesky_fallbacks = 0
         self.n_used = 0
-        self.last_extra: dict = {}
+        self._last_extra: dict | None = {}
+
+    @property
+    def last_extra(self) -> dict:
+        """The diagnostics of the last step (biases, clock, atmosphere, ...); after a
+        :meth:`step_row` they are gathered on reading."""
+        extra = self._last_extra
+        if extra is None:
+            extra = self._last_extra = self._extra()
+        return extra
+
+    @last_extra.setter
+    def last_extra(self, value: dict) -> None:
+        self._last_extra = value
 
     # ------------------------------------------------------------------ update
     def _measurements(self, obs):
@@ -900,6 +922,20 @@ class _TightlyCoupled(NoiseScalable):
         eng.apply(dx, P_new)
         return float(nis), 1
 
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
+        :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers; a step
+        without an update builds no :class:`Estimate` and leaves :attr:`last_extra` to be
+        gathered on reading."""
+        m = measurement
+        eng = self.engine
+        if m.gnss is None and eng is not None and (
+                self._baro is None or getattr(m, "baro_alt_m", None) is None or (m.step + 1) % self._baro_steps != 0):
+            row, c = eng.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+            self._last_extra = None
+            return row, c, None, None
+        return row_of(self.step(m))
+
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step (an update when the step carries a GNSS epoch): the batch path
         on a batch of one at epochs, the engine's one-step INS path in between (the same
@@ -908,10 +944,10 @@ class _TightlyCoupled(NoiseScalable):
         baro = getattr(m, "baro_alt_m", None)
         if m.gnss is None and self.engine is not None and (
                 self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
-            rows, c = self.engine.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+            row, c = self.engine.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
             self.last_extra = self._extra()
-            lat, lon, h, ve, vn, vu, heading, pitch, roll = rows[0].tolist()
-            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=c[0],
+            lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
+            return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=c,
                             extra=self.last_extra)
         if m.gnss is not None and self.engine is not None and not self._with_lever and (
                 self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):

@@ -110,7 +110,7 @@ class ErrorStateIns:
     def state(self) -> InsState:
         """The corrected INS state at the last processed step."""
         if self._state is None:  # built on demand after steps of the one-step path
-            lat, lon, h, velocity, quat, compensation = self._flat
+            lat, lon, h, velocity, quat, compensation = self._floats()
             self._state = InsState(lat, lon, h, np.array(velocity), np.array(quat), compensation)
         return self._state
 
@@ -124,7 +124,11 @@ class ErrorStateIns:
         """The state as Python floats: (lat, lon, h, velocity (3,), quat (4,), compensation)."""
         if self._flat is None:
             st = self._state
-            self._flat = (st.lat, st.lon, st.h, st.velocity_n.tolist(), st.quat_nb.tolist(), st.compensation)
+            if st is None:  # the compiled one-step path holds the state in its (13,) array
+                v = self._vec.tolist()
+                self._flat = (v[0], v[1], v[2], v[6:9], v[9:13], (v[3], v[4], v[5]))
+            else:
+                self._flat = (st.lat, st.lon, st.h, st.velocity_n.tolist(), st.quat_nb.tolist(), st.compensation)
         return self._flat
 
     # -- covariance intervals ----------------------------------------------------------
@@ -221,13 +225,22 @@ class ErrorStateIns:
 
     def advance_step(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> tuple[np.ndarray, np.ndarray]:
         """``advance_body(prepare_step(...))`` of one step from a
-        :class:`~navsim.estimators.base.Measurement`'s arrays: rows (1, 9), covariance (1, 9, 9).
+        :class:`~navsim.estimators.base.Measurement`'s arrays: rows (1, 9), covariance (1, 9, 9)
+        (:meth:`advance_row` with a leading step axis)."""
+        row, cov = self.advance_row(dtheta_sub, dv_sub, dtheta_r, dv_r)
+        return row[None], cov[None]
+
+    def advance_row(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> tuple[np.ndarray, np.ndarray]:
+        """One navigation step from a :class:`~navsim.estimators.base.Measurement`'s arrays:
+        the solution row (9,) and the navigation block (9, 9) of P at its end, both the
+        caller's (fresh arrays).
 
         With numba and the methods of :data:`navsim.strapdown.onestep.ONE_STEP_METHODS`
         (the default with multiple integrals of order >= 4) the whole step (strapdown terms,
         bias removal, the INS step, the solution row and the specific force) is one
         compiled call, :func:`navsim.strapdown.compiled.one_step`: the operations of the
-        float path in the same order, so the same numbers; otherwise the float path.
+        float path in the same order, so the same numbers; otherwise the float path
+        (:meth:`advance_body` of :meth:`prepare_step`).
         """
         key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
                dtheta_r.shape, dv_r.shape)
@@ -236,7 +249,8 @@ class ErrorStateIns:
             if (methods is None or (dtheta_sub is None) != (dv_sub is None)
                     or tuple(methods) not in _one.ONE_STEP_METHODS or key[2][0] < 4 or key[3][0] < 4
                     or not _compiled.available()):
-                return self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+                rows, cov = self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+                return rows[0], cov[0]
             self._compiled_key = key
         if self._pending is not None:
             self._start_interval(self._pending)
@@ -247,27 +261,30 @@ class ErrorStateIns:
         vec = self._vec
         if vec is None:
             lat, lon, h, velocity, quat, compensation = self._floats()
-            vec = np.array([lat, lon, h, *compensation, *velocity, *quat], dtype=float)
+            vec = self._vec = np.array([lat, lon, h, *compensation, *velocity, *quat], dtype=float)
         out = np.empty(12)
-        use_sub = dtheta_sub is not None
-        kern[0](kern[1], kern[2], dtheta_r, dv_r, dtheta_sub if use_sub else kern[3], dv_sub if use_sub else kern[3],
-                use_sub, self.gyro_bias, self.accel_bias, vec, self.dt, out)
-        v = vec.tolist()
-        self._flat = (v[0], v[1], v[2], v[6:9], v[9:13], (v[3], v[4], v[5]))
+        if dtheta_sub is not None:
+            kern[0](kern[1], kern[2], dtheta_r, dv_r, dtheta_sub, dv_sub, True, self.gyro_bias, self.accel_bias, vec,
+                    self.dt, out)
+        else:
+            kern[0](kern[1], kern[2], dtheta_r, dv_r, kern[3], kern[3], False, self.gyro_bias, self.accel_bias, vec,
+                    self.dt, out)
+        # the state now lives in vec (13,): the floats and the InsState are built when read
+        self._flat = None
         self._state = None
-        self._vec = vec
+        f = out.tolist()  # out[0:6] are the state's position and velocity
         # position and velocity finite: their sum is (a sum of finite values that overflows
         # only takes the validation below, which then passes)
-        if not math.isfinite(v[0] + v[1] + v[2] + v[6] + v[7] + v[8]):
+        if not math.isfinite(f[0] + f[1] + f[2] + f[3] + f[4] + f[5]):
+            self._floats()
             self._vec = None
             self.state  # noqa: B018  (validates: the error of the array path)
-        f = out.tolist()
         fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
         self._f_sum = [fs[0] + f[9], fs[1] + f[10], fs[2] + f[11]]
         self._f_count += 1
-        cov = self._step_covariance()
+        cov = self._step_covariance_row()
         self._after_steps(1)
-        return out[None, :9], cov
+        return out[:9], cov
 
     def _after_steps(self, n: int) -> None:
         """Hook of subclasses whose own means follow the INS steps (called by the compiled
@@ -374,13 +391,17 @@ class ErrorStateIns:
 
     def _step_covariance(self) -> np.ndarray:
         """The navigation block (1, 9, 9) of P after one more step of the interval (one-step paths)."""
+        return self._step_covariance_row()[None]
+
+    def _step_covariance_row(self) -> np.ndarray:
+        """The navigation block (9, 9) of P after one more step of the interval (one-step paths)."""
         if self._nav_block is None:
             # P9(tau) = (tau^p)_p @ coefficients at every step of the interval in one product,
             # as advance_body does for the steps of a batch
             if self._poly is None:
                 self._poly = self._series.nav_polynomial(self._P0)
             tau = (1 + np.arange(self.interval_steps)) * self.dt
-            self._nav_block = ((tau[:, None] ** np.arange(9)) @ self._poly).reshape(-1, 1, 9, 9)
+            self._nav_block = ((tau[:, None] ** np.arange(9)) @ self._poly).reshape(-1, 9, 9)
         cov = self._nav_block[self._j].copy()
         self._j += 1
         if self._j == self.interval_steps:

@@ -18,7 +18,7 @@ import numpy as np
 from ...earth import SPHERICAL, EarthModel
 from ...errors import ConfigError
 from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior, StepRow, row_of
 from . import kernel as _kernel
 from .config import PaperEkfConfig
 from .numerics import CSTEP, check_rows, cross, input_polynomial_matrix, riccati_rk4_h
@@ -1360,9 +1360,10 @@ class PaperEkf(NoiseScalable):
                                  c, ic, breaks, lam_c, h_c, sol, cov)
         return sol, cov
 
-    def _step_compiled(self, measurement: Measurement):
-        """The step-wise path of the compiled engine for a step without an epoch; None when
-        the step needs the general path (sub-steps, a failure), the state then unchanged."""
+    def _row_compiled(self, measurement: Measurement) -> tuple[np.ndarray, np.ndarray] | None:
+        """The step-wise path of the compiled engine for a step without an epoch: (solution
+        row (9,), covariance (9, 9)); None when the step needs the general path (sub-steps,
+        a failure), the state then unchanged."""
         st = self._kstate or self._k_arrays()
         sol = np.empty(9)
         cov9 = np.empty((9, 9))
@@ -1371,6 +1372,15 @@ class PaperEkf(NoiseScalable):
                                            int(measurement.step), st[0], st[1], *self._kstep, sol, cov9)
         if status != _kernel.STATUS_DONE:
             return None
+        return sol, cov9
+
+    def _step_compiled(self, measurement: Measurement):
+        """:meth:`_row_compiled` as an :class:`Estimate` (None: the general path)."""
+        done = self._row_compiled(measurement)
+        if done is None:
+            return None
+        sol, cov9 = done
+        st = self._kstate
         y = st[2].copy()
         extra = {"state": y, "state_cov": st[4].copy(), "diverged": False}
         if self.n_states > 5:
@@ -1386,6 +1396,21 @@ class PaperEkf(NoiseScalable):
             est = self._step_compiled(measurement)
             if est is not None:
                 return est
+        return self._step_general(measurement)
+
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
+        :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers; a step of
+        the compiled path builds no :class:`Estimate` and no ``extra``."""
+        self._require()
+        if self._kargs is not None and measurement.gnss is None and not self._diverged:
+            done = self._row_compiled(measurement)
+            if done is not None:
+                return done[0], done[1], None, None
+        return row_of(self._step_general(measurement))
+
+    def _step_general(self, measurement: Measurement) -> Estimate:
+        """:meth:`step` by (14) and (16) on arrays (every step the compiled path does not take)."""
         inp = self._prepare(measurement.dtheta_r[None], measurement.dv_r[None])
         epochs = {} if measurement.gnss is None else {0: measurement.gnss}
         t = np.array([measurement.t])
