@@ -923,14 +923,14 @@ class AlongTrackFilter(NoiseScalable):
         sol = np.empty(9)
         J = np.zeros((9, self.n_x))
         kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol[None], J)
-        floor = self.__dict__.get("_floor")
-        if floor is None:
-            floor = self._output_floor()
-        cov = J @ P @ J.T + floor
-        if self.options.attitude_floor_rad is None:
-            cov[6:9, :] = np.nan
-            cov[:, 6:9] = np.nan
-        return sol, cov
+        floor = self.__dict__.get("_floor_row")
+        if floor is None:  # the floors, with NaN on the attitude rows and columns when unestimated
+            floor = self._output_floor().copy()
+            if self.options.attitude_floor_rad is None:  # NaN + x is NaN: _output_one's NaN entries
+                floor[6:9, :] = np.nan
+                floor[:, 6:9] = np.nan
+            self._floor_row = floor
+        return sol, J @ P @ J.T + floor
 
     def _output_floor(self) -> np.ndarray:
         """The floors of :meth:`_outputs` (9, 9), fixed by the options."""

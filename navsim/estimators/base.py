@@ -28,6 +28,13 @@ the ENU axes (``mat_nb_est = (I + [psi x]) mat_nb_true``). Estimators that do no
 estimate some components (e.g. GNSS only: no attitude) put ``nan`` on those diagonal
 entries; metrics then skip them.
 
+Step-wise fast path (optional, :class:`RowStepping`): ``step_row(measurement) -> (row,
+covariance, nis, nis_dof)`` does what ``step`` does and returns the solution as a (9,) row
+(:meth:`NavSolution.as_action`) with its covariance and NIS, without the
+:class:`Estimate` and its ``extra`` diagnostics; :class:`navsim.envs.EstimatorAgent` and the
+estimator FMU use it when the estimator's ``step`` and ``step_row`` come from the same
+class. lc-ekf, tc-ekf, tc-ukf, along-track and paper-ekf implement it.
+
 The values themselves (context, measurements, solutions) live in :mod:`navsim.types`
 and are re-exported here; ``Prior`` and ``Estimate`` are two names of
 :class:`navsim.types.NavSolution`.

@@ -4,10 +4,8 @@
 ``step_row`` runs the operations of ``step`` in the same order and only skips building the
 :class:`Estimate` and its diagnostics, so row, covariance and NIS equal ``step``'s bit for
 bit. Against ``step_batch``: position and velocity bit for bit (the same operations); the
-attitude angles of the compiled one-step INS path come from libm's atan2/asin where the
-batch uses NumPy's (SIMD on some CPUs, within 1 ulp of libm), so they are held to 2 ulp of
-pi (the angles are below pi in magnitude, the error does not feed back: the INS state is
-the quaternion); the covariance between epochs is
+attitude angles to 2 ulp of pi (libm's atan2/asin in the compiled one-step INS path,
+NumPy's in the batch, see tests/tolerances.py); the covariance between epochs is
 one (n, 9) @ (9, 81) product in batch and one row at a time step by step, so it is held
 to the rounding of a 9-term sum (tests/tolerances.py). ``EstimatorAgent`` hands a step
 without a GNSS epoch over as views of the observation in a reused object; its actions and
@@ -20,13 +18,13 @@ import math
 
 import numpy as np
 import pytest
+from tolerances import assert_covariance_close, assert_same_arithmetic, assert_same_solution
 
 from navsim.episode import make_context, measurement_batch
 from navsim.estimators import make
 from navsim.estimators.base import RowStepping
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
-from tolerances import assert_covariance_close, assert_same_arithmetic
 
 FAST = ["lc-ekf", "tc-ekf", "tc-ukf", "along-track", "paper-ekf"]
 OVER = {"timing": {"duration_s": 4.0}, "outages": {"windows_s": [[1.5, 2.5]]}}
@@ -62,8 +60,7 @@ def test_step_row_equals_step_and_batch(name):
     assert_same_arithmetic(np.array([r[1] for r in by_row]), np.array([e.covariance for e in by_step]), "cov vs step")
     assert_same_arithmetic([_nis(r[2]) for r in by_row], [_nis(e.nis) for e in by_step], "nis vs step")
     assert [r[3] for r in by_row] == [e.nis_dof for e in by_step]
-    assert_same_arithmetic(rows[:, :6], ref.solution[:, :6], "position, velocity vs batch")
-    np.testing.assert_allclose(rows[:, 6:], ref.solution[:, 6:], rtol=0, atol=2 * np.spacing(np.pi))
+    assert_same_solution(rows, ref.solution, "vs batch")
     assert_same_arithmetic([_nis(r[2]) for r in by_row], ref.nis, "nis vs batch")
     assert_covariance_close(np.array([r[1] for r in by_row]), ref.covariance, n_terms=9)
     assert sum(r[2] is not None for r in by_row) == 3  # epochs at 1, 3, 4 s; 2 s falls in the outage
@@ -114,6 +111,7 @@ def test_agent_fast_path_equals_step_path(name):
 
 def test_agent_keeps_step_of_a_subclass_that_overrides_it():
     from navsim.envs.agent import _row_stepping
+
     from navsim.estimators.loosely import LooselyCoupledEkf
 
     class Shifted(LooselyCoupledEkf):
