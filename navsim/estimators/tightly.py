@@ -563,6 +563,7 @@ class _ClockEngine(AuxBlocksIns):
 
     def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool,
                  atmosphere=None, baro=None, **kw):
+        self._means_due = False  # the means of _after_steps, computed when read
         self.with_clock = bool(with_clock)
         self.with_atmosphere = atmosphere is not None
         self.with_baro = baro is not None
@@ -639,9 +640,50 @@ class _ClockEngine(AuxBlocksIns):
         return rows, cov
 
     def _after_steps(self, n: int) -> None:
-        """The clock (TC.1) and atmosphere (TC.5) means after n more steps since the update
-        (also called by the compiled one-step path of :meth:`ErrorStateIns.advance_step`)."""
+        """n more steps since the update (also called by the compiled one-step path of
+        :meth:`ErrorStateIns.advance_row`): the clock, atmosphere and altimeter-bias means
+        are brought to them when next read (:meth:`_propagate_means`; they depend on the
+        step count only, so the values are those of an evaluation here)."""
         self._since_update += n
+        self._means_due = True
+
+    @property
+    def clock(self) -> np.ndarray:
+        """Receiver clock estimate [bias (m), drift (m/s)] at the last processed step."""
+        if self._means_due:
+            self._propagate_means()
+        return self._clock
+
+    @clock.setter
+    def clock(self, value: np.ndarray) -> None:
+        self._clock = value
+
+    @property
+    def atm(self) -> np.ndarray:
+        """Estimated zenith delays [I_z, T_z] (m) at the last processed step."""
+        if self._means_due:
+            self._propagate_means()
+        return self._atm
+
+    @atm.setter
+    def atm(self, value: np.ndarray) -> None:
+        self._atm = value
+
+    @property
+    def baro_bias(self) -> float:
+        """Estimated altimeter bias (m) at the last processed step."""
+        if self._means_due:
+            self._propagate_means()
+        return self._baro_bias
+
+    @baro_bias.setter
+    def baro_bias(self, value: float) -> None:
+        self._baro_bias = value
+
+    def _propagate_means(self) -> None:
+        """The clock (TC.1), atmosphere (TC.5) and altimeter-bias (TC.10) means after
+        ``_since_update`` steps since the update."""
+        self._means_due = False
         tau = self._since_update * self.dt
         if self.with_clock:  # (TC.1) mean: bias + drift tau
             c0 = self._clock_at_update
