@@ -10,8 +10,8 @@ step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
      :func:`navsim.episode.run_episode` drives it (the reference);
    * ``step``: ``Estimator.step`` on the same data as :class:`Measurement` objects;
    * ``agent``: ``EstimatorAgent.act`` on the observations the env produced for the same
-     seed (decoding, ``step`` and the action), the README's Gymnasium loop without the
-     env's own cost.
+     seed (decoding, the estimator's ``step_row`` fast path, or ``step`` for an estimator
+     without it, and the action), the README's Gymnasium loop without the env's own cost.
 
    ``agent / batch`` is the figure the issue sets a goal for (<= 1.5). The last column is
    the largest position difference (m, local level) between the agent's solutions and

@@ -20,6 +20,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from navsim.errors import ConfigError
+from navsim.estimators.base import row_stepping
 from navsim.signals import Layout, ObservationCodec
 from navsim.types import Estimate, Measurement
 
@@ -121,7 +122,7 @@ class EstimatorAgent:
         self._scale = np.asarray(info.get("action_scale", np.ones(9)), dtype=float)
         self._step = 0
         self._estimator_step = self.estimator.step
-        self._step_row = _row_stepping(self.estimator)
+        self._step_row = row_stepping(self.estimator)
         self._view = _StepView(self.codec.layout)
         self._last = None
 
@@ -198,18 +199,6 @@ class _StepView:
             baro = obs.get("baro_alt")
             self.baro_alt_m = None if baro is None else float(baro[0])
         return self
-
-
-def _row_stepping(estimator: Any) -> Any:
-    """The estimator's ``step_row`` when it is the fast form of its own ``step`` (both from
-    the same class: a subclass that overrides ``step`` alone keeps the ``step`` path)."""
-    fast = getattr(estimator, "step_row", None)
-    if not callable(fast):
-        return None
-    owners = {}
-    for attr in ("step", "step_row"):
-        owners[attr] = next((c for c in type(estimator).__mro__ if attr in c.__dict__), None)
-    return fast if owners["step"] is not None and owners["step"] is owners["step_row"] else None
 
 
 def _as_agent(agent_or_estimator: Any):

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, Callable, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -77,6 +77,7 @@ __all__ = [
     "RowStepping",
     "StepRow",
     "row_of",
+    "row_stepping",
     "NoiseScalable",
     "NoiseScaling",
     "MeasurementBatch",
@@ -125,6 +126,20 @@ class RowStepping(Protocol):
 def row_of(estimate: Estimate) -> StepRow:
     """The :data:`StepRow` of an :class:`Estimate` (``step_row`` through ``step``)."""
     return estimate.as_action(), estimate.covariance, estimate.nis, estimate.nis_dof
+
+
+def row_stepping(estimator: Any) -> Callable[[Measurement], StepRow] | None:
+    """The estimator's bound ``step_row`` when it is the fast form of its own ``step``
+    (both defined by the same class: a subclass that overrides ``step`` alone keeps the
+    ``step`` path), else None. What a step-wise driver (the env's agent, the estimator FMU)
+    calls per step."""
+    fast = getattr(estimator, "step_row", None)
+    if not callable(fast):
+        return None
+    mro = type(estimator).__mro__
+    owner_step = next((c for c in mro if "step" in c.__dict__), None)
+    owner_row = next((c for c in mro if "step_row" in c.__dict__), None)
+    return fast if owner_step is not None and owner_step is owner_row else None
 
 
 # An estimator may also offer ``step_batch(batch: MeasurementBatch) -> EstimateBatch``,

@@ -22,7 +22,7 @@ from tolerances import assert_covariance_close, assert_same_arithmetic, assert_s
 
 from navsim.episode import make_context, measurement_batch
 from navsim.estimators import make
-from navsim.estimators.base import RowStepping
+from navsim.estimators.base import RowStepping, row_stepping
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
 
@@ -110,7 +110,6 @@ def test_agent_fast_path_equals_step_path(name):
 
 
 def test_agent_keeps_step_of_a_subclass_that_overrides_it():
-    from navsim.envs.agent import _row_stepping
 
     from navsim.estimators.loosely import LooselyCoupledEkf
 
@@ -118,6 +117,6 @@ def test_agent_keeps_step_of_a_subclass_that_overrides_it():
         def step(self, measurement):
             return super().step(measurement)
 
-    assert _row_stepping(Shifted()) is None
+    assert row_stepping(Shifted()) is None
     est = LooselyCoupledEkf()
-    assert _row_stepping(est) == est.step_row
+    assert row_stepping(est) == est.step_row
