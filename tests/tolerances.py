@@ -48,28 +48,6 @@ def assert_same_arithmetic(actual, desired, what: str = "") -> None:
     np.testing.assert_array_equal(np.asarray(actual), np.asarray(desired), err_msg=what)
 
 
-def assert_same_solution(actual, desired, what: str = "") -> None:
-    """Solution rows (..., 9) of the step and batch paths of an INS filter: position and
-    velocity bit for bit (the same operations); the attitude angles to 2 ulp of pi.
-
-    The compiled one-step INS path (``navsim.strapdown.compiled.one_step``) takes heading,
-    pitch and roll from libm's ``atan2``/``asin``, the batch from NumPy's, which on CPUs with
-    its SIMD loops (AVX2/AVX-512) is within 1 ulp of libm and not always equal. The angles
-    are output only (the INS state is the quaternion), |angle| <= pi, so the two differ by at
-    most 1 ulp of pi each: 2 ulp of pi bounds their difference."""
-    a = np.asarray(actual, dtype=float)
-    b = np.asarray(desired, dtype=float)
-    np.testing.assert_array_equal(a[..., :6], b[..., :6], err_msg=f"position, velocity {what}")
-    assert_same_attitude(a[..., 6:], b[..., 6:], what)
-
-
-def assert_same_attitude(actual, desired, what: str = "") -> None:
-    """Heading, pitch, roll of the step and batch paths: 2 ulp of pi (see
-    :func:`assert_same_solution`)."""
-    np.testing.assert_allclose(np.asarray(actual, dtype=float), np.asarray(desired, dtype=float), rtol=0.0,
-                               atol=2.0 * float(np.spacing(np.pi)), err_msg=f"attitude {what}")
-
-
 def assert_covariance_close(actual, desired, n_terms: int = 9, what: str = "") -> None:
     """Covariance stacks (..., k, k) equal to the rounding of an ``n_terms``-term sum per
     entry, scaled by ``sqrt(P_ii P_jj)`` (see the module notes); NaN where NaN."""

@@ -3,9 +3,9 @@
 
 ``step_row`` runs the operations of ``step`` in the same order and only skips building the
 :class:`Estimate` and its diagnostics, so row, covariance and NIS equal ``step``'s bit for
-bit. Against ``step_batch``: position and velocity bit for bit (the same operations); the
-attitude angles to 2 ulp of pi (libm's atan2/asin in the compiled one-step INS path,
-NumPy's in the batch, see tests/tolerances.py); the covariance between epochs is
+bit. Against ``step_batch``: position and velocity bit for bit (the same operations), the
+attitude angles as ``tolerances.assert_same_solution`` (libm's atan2/asin in the compiled
+one-step INS path, NumPy's in the batch); the covariance between epochs is
 one (n, 9) @ (9, 81) product in batch and one row at a time step by step, so it is held
 to the rounding of a 9-term sum (tests/tolerances.py). ``EstimatorAgent`` hands a step
 without a GNSS epoch over as views of the observation in a reused object; its actions and
