@@ -21,7 +21,7 @@ import numpy as np
 
 from navsim.errors import ConfigError
 from navsim.estimators.base import row_stepping
-from navsim.signals import Layout, ObservationCodec
+from navsim.signals import MEASUREMENT_SIGNALS, Layout, ObservationCodec
 from navsim.types import Estimate, Measurement
 
 __all__ = ["EstimateAction", "EstimatorAgent", "evaluate"]
@@ -123,7 +123,7 @@ class EstimatorAgent:
         self._step = 0
         self._estimator_step = self.estimator.step
         self._step_row = row_stepping(self.estimator)
-        self._view = _StepView(self.codec.layout)
+        self._view = _StepView(self.codec)
         self._last = None
 
     def measurement(self, obs: dict) -> Measurement:
@@ -172,18 +172,16 @@ class EstimatorAgent:
 class _StepView:
     """The fields of :class:`~navsim.types.Measurement` for a step without a GNSS epoch,
     refilled for every such step with views of the observation's arrays (the decoding of
-    :meth:`navsim.signals.ObservationCodec.decode`, without building a value)."""
+    :meth:`navsim.signals.ObservationCodec.decode`, without building a value). The optional
+    sensors' readings are the codec's :attr:`~navsim.signals.ObservationCodec.measurement_signals`
+    (each declared once in :mod:`navsim.signals`); a field of a sensor the scenario lacks is None."""
 
-    __slots__ = ("step", "t", "dt", "dtheta_r", "dv_r", "dtheta_sub", "dv_sub", "gnss", "odometer_ds_m",
-                 "baro_alt_m", "_odometer", "_baro")
-
-    def __init__(self, layout: Layout) -> None:
-        self.dt = float(layout.nav_period_s)
+    def __init__(self, codec: ObservationCodec) -> None:
+        self.dt = float(codec.layout.nav_period_s)
         self.gnss = None
-        self.odometer_ds_m = None
-        self.baro_alt_m = None
-        self._odometer = bool(layout.odometer)
-        self._baro = bool(layout.baro)
+        for sig in MEASUREMENT_SIGNALS:
+            setattr(self, sig.measurement, None)
+        self._optional = tuple((sig.name, sig.measurement) for sig in codec.measurement_signals)
 
     def fill(self, obs: dict, step: int) -> "_StepView":
         self.step = step
@@ -192,12 +190,9 @@ class _StepView:
         self.dv_r = obs["dv_r"].reshape(-1, 3)
         self.dtheta_sub = obs["dtheta_sub"].reshape(-1, 3)
         self.dv_sub = obs["dv_sub"].reshape(-1, 3)
-        if self._odometer:
-            odometer = obs.get("odometer_ds")
-            self.odometer_ds_m = None if odometer is None else float(odometer[0])
-        if self._baro:
-            baro = obs.get("baro_alt")
-            self.baro_alt_m = None if baro is None else float(baro[0])
+        for key, field in self._optional:
+            value = obs.get(key)
+            setattr(self, field, None if value is None else float(value[0]))
         return self
 
 

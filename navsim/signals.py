@@ -518,6 +518,12 @@ class ObservationCodec:
         terminal["t"][0] = layout.duration_s
         self._terminal = terminal
 
+    @property
+    def measurement_signals(self) -> tuple[Signal, ...]:
+        """The signals of this layout that fill an optional :class:`~navsim.types.Measurement`
+        field (``Signal.measurement``: the optional sensors' per-step readings)."""
+        return self._per_step
+
     def terminal(self) -> dict[str, np.ndarray]:
         """The empty observation at the episode end (t = duration, everything else zero)."""
         return {key: value.copy() for key, value in self._terminal.items()}

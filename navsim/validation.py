@@ -39,8 +39,8 @@ positive whole number of steps per chunk, and a chunk that fits in memory).
 Option checks shared by the estimators' option classes (one wording for every filter):
 
 * :func:`check_choice` / :func:`check_auto_none`: a name from a fixed set (the switches
-  ``lever_arm``, ``odometer``, ``baro``, ``atmosphere``, ``clock``: ``"auto"`` uses what the
-  context provides, ``"none"`` leaves the aid out);
+  ``lever_arm``, ``atmosphere``, ``clock`` and one per optional sensor: ``"auto"`` uses what
+  the context provides, ``"none"`` leaves the aid out);
 * :func:`check_positive_finite`: a real number ``0 < x < inf`` (periods, sigmas, factors);
 * :func:`check_optional_positive_finite`: the same, or None (a default taken from the context);
 * :func:`check_time_constant`: the correlation time ``tau`` of a first-order Gauss-Markov
@@ -232,7 +232,7 @@ def check_positive_finite(field: str, value: object, expected: str = "a positive
     """``float(value)`` for a real number with ``0 < value < inf``, else :class:`ConfigError`
     (``expected`` is the wording of the message, e.g. ``"a positive finite time, s"``).
 
-    >>> check_positive_finite("baro_period_s", 1)
+    >>> check_positive_finite("odometer_period_s", 1)
     1.0
     """
     number = _real(value)
