@@ -372,9 +372,9 @@ class TrackRenderer:
             y = y1 - np.clip(v[ok], 0.0, top) / top * (y1 - y0 - 4)
             _polyline(img, x[ok], y, color)
         for frac in (0.0, 0.5, 1.0):
-            y = int(round(y1 - frac * (y1 - y0 - 4)))
-            img[y, x0 - 4:x0] = _AXIS
-            texts.append((x0 - 6, y - 6, _fmt(frac * top, 0.5 * top), "r"))
+            y_tick = int(round(y1 - frac * (y1 - y0 - 4)))
+            img[y_tick, x0 - 4:x0] = _AXIS
+            texts.append((x0 - 6, y_tick - 6, _fmt(frac * top, 0.5 * top), "r"))
         texts.append((x0 + 4, y0 + 2, view.strip_label, "l"))
         return texts
 
