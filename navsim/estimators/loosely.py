@@ -456,6 +456,8 @@ class LooselyCoupledEkf(NoiseScalable):
         return row, cov
 
     def _ins_extra(self, eng: ErrorStateIns) -> dict:
+        """The ``extra`` of an :class:`Estimate`: divergence flag, bias estimates and the
+        auxiliary states of the options in use (fix errors, odometer scale, baro bias)."""
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
         if self._fix_index is not None:
             extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
@@ -500,14 +502,8 @@ class LooselyCoupledEkf(NoiseScalable):
             m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo]),
             None if baro is None else np.array([baro])))
         row = out.solution[0]
-        extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
-        if self._fix_index is not None:
-            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
-        if self._odo is not None:
-            extra["odometer_scale"] = float(eng.aux[0])
-            extra["odometer_nis"] = self.odometer_nis
+        extra = self._ins_extra(eng)
         if self._baro is not None:
-            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
             extra["baro_nis"] = self.baro_nis
         if m.gnss is not None:
             extra["n_valid"] = self.last_update.get("n_valid", 0)
@@ -537,11 +533,8 @@ class LooselyCoupledEkf(NoiseScalable):
             row = rows[0].tolist()
             covariance = cov[0]
         self.diverged = self.diverged or eng.diverged
-        extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
-        if self._fix_index is not None:
-            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
+        extra = self._ins_extra(eng)  # no odometer on this path
         if self._baro is not None:
-            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
             extra["baro_nis"] = self.baro_nis
         extra["n_valid"] = self.last_update.get("n_valid", 0)
         lat, lon, h, ve, vn, vu, heading, pitch, roll = row
