@@ -99,6 +99,7 @@ from typing import Any
 import numpy as np
 
 from navsim.errors import ConfigError, NavsimError
+from navsim.estimators.base import row_stepping
 from navsim.signals import MEASUREMENT_SIGNALS, STEP_SIGNALS, signal
 from navsim.types import GnssObservation, Measurement
 
@@ -724,6 +725,8 @@ class EstimatorRuntime(_RuntimeBase):
                                        "gnss.sat_vel_e"])
         self._valid = store.slot("gnss.valid")[1]
         self._at = {name: store.slot(name)[1].start for name in ("time.step", "time.t_s", "gnss.new_epoch")}
+        self._epoch_at = self._at["gnss.new_epoch"]
+        self._step_row: Any = None  # the estimator's row_stepping (set at the first plant data)
         self._meas_signals = [(s.measurement, store.slot(s.fmu_name)[1].start, s.dtype == "float64")
                               for s in MEASUREMENT_SIGNALS if s.present(self.dims)]
         solution, prior = signal("solution"), signal("prior")
@@ -855,14 +858,25 @@ class EstimatorRuntime(_RuntimeBase):
             k = self._span_next or 1
             if not self.started:  # the prior came with (or before) the plant's first step
                 self._reset_estimator(k)
+                self._step_row = row_stepping(self.estimator)
+                self._view = _StoreView(self, k)
                 self.started = True
+            step_row = self._step_row
             try:
-                est = self.estimator.step(self._measurement(c, k))
+                if step_row is None:
+                    est = self.estimator.step(self._measurement(c, k))
+                elif self.store.bool[self._epoch_at]:  # an epoch: a Measurement (the estimator may keep it)
+                    row, cov, nis, dof = step_row(self._measurement(c, k))
+                else:
+                    row, cov, nis, dof = step_row(self._view.fill(c, k))
             except NavsimError as exc:  # e.g. a strapdown method that needs IMU sub-samples
                 raise FmuError(f"estimator {self.meta.get('estimator', '')!r} refused the data of plant step {c} "
                                f"(navigation step {k} x {self.timing.nav_period_s!r} s): {exc}") from None
             self.processed = c
-            self._write_estimate(est, c * self.timing.nav_period_s, self.tick + n)
+            if step_row is None:
+                self._write_estimate(est, c * self.timing.nav_period_s, self.tick + n)
+            else:
+                self._write_row(row, cov, nis, dof, c * self.timing.nav_period_s, self.tick + n)
         elif not self.started:
             self._write_estimate(self._prior(), 0.0, self.tick + n)
         else:
@@ -906,6 +920,24 @@ class EstimatorRuntime(_RuntimeBase):
                                dv_r=rows[orders:2 * orders], dtheta_sub=dtheta_sub, dv_sub=dv_sub, gnss=gnss, **extras)
         return Measurement(c // k - 1, c * dt, k * dt, rows[:orders], rows[orders:2 * orders], dtheta_sub, dv_sub, gnss)
 
+    def _write_row(self, row: np.ndarray, cov: np.ndarray | None, nis: float | None, dof: int | None, t_s: float,
+                   tick: int) -> None:
+        """:meth:`_write_estimate` from a :data:`~navsim.estimators.base.StepRow`: ``row``
+        (9,) is the solution block's [lat, lon, h, velocity_n (3), heading, pitch, roll]."""
+        real, o = self.store.real, self._sol_real
+        real[o] = t_s
+        real[o + 1:o + 10] = row
+        if cov is None:
+            real[o + 10:o + 100] = math.nan
+        else:  # standard deviations from the diagonal, every 10th element of the row-major 9 x 9
+            flat = real[o + 19:o + 100]
+            flat[:] = cov.ravel()
+            np.sqrt(np.abs(flat[::10]), out=real[o + 10:o + 19])
+        real[o + 100] = math.nan if nis is None else nis
+        processed = self.processed
+        self.store.int[self._sol_int:self._sol_int + 3] = (
+            processed, tick // self.nav_ticks - processed, (int(dof or 0) if nis is not None else 0))
+
     def _write_estimate(self, est: Any, t_s: float, tick: int) -> None:
         """Write the solution, its time, step and lag at FMU time ``tick`` straight into the
         store's consecutive solution block: reals [t_s, solution (9), sigmas (9), covariance
@@ -925,6 +957,45 @@ class EstimatorRuntime(_RuntimeBase):
         self.store.int[self._sol_int:self._sol_int + 3] = (
             self.processed, tick // self.nav_ticks - self.processed,
             (int(est.nis_dof or 0) if nis is not None else 0))
+
+
+class _StoreView:
+    """The fields of :class:`~navsim.types.Measurement` for a navigation step without a
+    GNSS epoch, refilled for every such step from the estimator FMU's value store (what
+    :meth:`EstimatorRuntime._measurement` builds, without building a value): the IMU block
+    is copied once per step (the host overwrites the store in place) and the increments
+    are views of that copy; ``gnss`` is None; the optional sensors' fields are read from
+    their inputs (None for a sensor the scenario lacks). Handed to the estimator's
+    ``step_row`` (:class:`~navsim.estimators.base.RowStepping`), which keeps no reference
+    to it."""
+
+    def __init__(self, rt: EstimatorRuntime, k: int) -> None:
+        orders, m = rt.dims.orders, rt.dims.samples_per_step
+        self._real, self._int, self._imu = rt.store.real, rt.store.int, rt._imu
+        self._k = k
+        self._nav = rt.timing.nav_period_s
+        self.dt = k * self._nav
+        self.gnss = None
+        for sig in MEASUREMENT_SIGNALS:
+            setattr(self, sig.measurement, None)
+        self._optional = tuple(rt._meas_signals)
+        # [dtheta_r (R), dv_r (R), dtheta_sub (m), dv_sub (m)] rows; a composed interval (k > 1)
+        # is one sample: its first-order increments
+        self._cuts = ((0, orders), (orders, 2 * orders),
+                      (2 * orders, 2 * orders + m) if k == 1 else (0, 1),
+                      (2 * orders + m, 2 * orders + 2 * m) if k == 1 else (orders, orders + 1))
+
+    def fill(self, c: int, k: int) -> _StoreView:
+        """The fields of plant steps ``c - k .. c - 1`` (see the class docstring)."""
+        rows = self._real[self._imu].copy().reshape(-1, 3)
+        (a, b), (d, e), (f, g), (p, q) = self._cuts
+        self.step = c // k - 1
+        self.t = c * self._nav
+        self.dtheta_r, self.dv_r, self.dtheta_sub, self.dv_sub = rows[a:b], rows[d:e], rows[f:g], rows[p:q]
+        real, ints = self._real, self._int
+        for field, i, is_real in self._optional:
+            setattr(self, field, float(real[i]) if is_real else int(ints[i]))
+        return self
 
 
 def _one_span(store: ValueStore, names: list[str]) -> slice:

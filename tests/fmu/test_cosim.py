@@ -37,6 +37,33 @@ def test_master_loop_equals_run_episode(fmi, request, scenario, reference):
     assert got["nis_updates"] > 0 and got["outage_count"] == 1
 
 
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_step_row_path_equals_step_path(fmi, request, monkeypatch):
+    """The estimator FMU steps lc-ekf through ``step_row`` (a view of its value store
+    between GNSS epochs): the same operations as ``step`` on a Measurement, so every
+    output equals the ``step`` path's (forced by hiding ``step_row``) bit for bit."""
+    from navsim.estimators.base import row_stepping
+    from navsim.fmu import runtime
+    from navsim.fmu.master import cosimulate
+
+    plant, est = request.getfixturevalue(f"plant{fmi}"), request.getfixturevalue(f"estimator{fmi}")
+    seen: list = []
+
+    def spy(estimator):
+        fast = row_stepping(estimator)
+        seen.append(fast)
+        return fast
+
+    monkeypatch.setattr(runtime, "row_stepping", spy)
+    fast = cosimulate(plant, est, seed=SEED)
+    assert len(seen) == 1 and seen[0] is not None  # the FMU (in this process) took the step_row path
+    monkeypatch.setattr(runtime, "row_stepping", lambda estimator: None)
+    slow = cosimulate(plant, est, seed=SEED)
+    for field in ("est_lat", "est_lon", "est_h", "est_velocity_n", "est_hpr", "est_cov", "nis", "nis_dof"):
+        np.testing.assert_array_equal(getattr(fast, field), getattr(slow, field), err_msg=field)
+    assert np.isfinite(fast.nis).sum() > 0  # the episode had updates (GNSS epochs through a Measurement)
+
+
 def test_score_matches_batch_runner(scenario, reference):
     """`navsim run` uses the estimator's batch path: same score to rounding."""
     batch = run_episode(scenario, estimators.make("lc-ekf"), seed=SEED)
