@@ -398,6 +398,8 @@ class _RuntimeBase:
                      "warning")
         self.initialised = False
         self.terminated = False
+        self._h_checked: tuple[float, float] = (math.nan, math.nan)  # (h, tick) of the last accepted step
+        self._h_ticks = 0
 
     def _info(self, scenario) -> None:
         self.store.write("navsim.version", _version())
@@ -442,11 +444,15 @@ class _RuntimeBase:
         if not abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12:
             raise FmuError(f"communication point t = {t!r} s does not match the FMU's time {now!r} s "
                            "(steps must follow each other without gaps)")
-        ratio = h / tick_s if math.isfinite(h) else math.nan
-        n = round(ratio) if math.isfinite(ratio) else 0
-        if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
-            raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
-                           f"(tick = {tick_s!r} s; e.g. the navigation step {self.timing.nav_period_s!r} s)")
+        if h == self._h_checked[0] and tick_s == self._h_checked[1]:  # as the last step: the same ticks
+            n = self._h_ticks
+        else:
+            ratio = h / tick_s if math.isfinite(h) else math.nan
+            n = round(ratio) if math.isfinite(ratio) else 0
+            if n < 1 or abs(ratio - n) > REL_TOL * max(1.0, ratio):
+                raise FmuError(f"communication step h = {h!r} s is not a whole number (>= 1) of simulator ticks "
+                               f"(tick = {tick_s!r} s; e.g. the navigation step {self.timing.nav_period_s!r} s)")
+            self._h_checked, self._h_ticks = (h, tick_s), n
         if self.tick + n > self.end_tick:
             raise FmuError(f"communication step to t = {t + h!r} s goes beyond the episode's end "
                            f"({self.timing.duration_s!r} s)")
@@ -736,6 +742,10 @@ class EstimatorRuntime(_RuntimeBase):
                                            "nav.sigma_position_n", "nav.sigma_velocity_n", "nav.sigma_attitude_n",
                                            "nav.covariance", "nav.nis"]).start
         self._sol_int = _one_span(store, ["nav.step", "nav.lag_steps", "nav.nis_dof"]).start
+        o, real = self._sol_real, store.real  # views of the solution block's parts (the store is never reallocated)
+        self._out_row, self._out_sigma = real[o + 1:o + 10], real[o + 10:o + 19]
+        self._out_cov, self._out_diag = real[o + 19:o + 100].reshape(9, 9), real[o + 19:o + 100:10]
+        self._out_int = store.int[self._sol_int:self._sol_int + 3]
         self._info(self.base_scenario)
 
     def exit_initialization_mode(self) -> None:
@@ -926,17 +936,19 @@ class EstimatorRuntime(_RuntimeBase):
         (9,) is the solution block's [lat, lon, h, velocity_n (3), heading, pitch, roll]."""
         real, o = self.store.real, self._sol_real
         real[o] = t_s
-        real[o + 1:o + 10] = row
+        self._out_row[:] = row
         if cov is None:
             real[o + 10:o + 100] = math.nan
-        else:  # standard deviations from the diagonal, every 10th element of the row-major 9 x 9
-            flat = real[o + 19:o + 100]
-            flat[:] = cov.ravel()
-            np.sqrt(np.abs(flat[::10]), out=real[o + 10:o + 19])
+        else:  # standard deviations from the diagonal of the row-major 9 x 9
+            self._out_cov[...] = cov
+            sigma = self._out_sigma
+            np.abs(self._out_diag, out=sigma)
+            np.sqrt(sigma, out=sigma)
         real[o + 100] = math.nan if nis is None else nis
-        processed = self.processed
-        self.store.int[self._sol_int:self._sol_int + 3] = (
-            processed, tick // self.nav_ticks - processed, (int(dof or 0) if nis is not None else 0))
+        processed, ints = self.processed, self._out_int
+        ints[0] = processed
+        ints[1] = tick // self.nav_ticks - processed
+        ints[2] = int(dof or 0) if nis is not None else 0
 
     def _write_estimate(self, est: Any, t_s: float, tick: int) -> None:
         """Write the solution, its time, step and lag at FMU time ``tick`` straight into the
