@@ -14,9 +14,11 @@ For the bundled ``paper-2012`` scenario (0.01 s navigation step, 24 GNSS channel
   ``estimator``: the estimator FMU's doStep (FMI 2, lc-ekf) fed with the plant's outputs
   (only its doStep timed); goal <= 2 x (empty + lc-ekf batch).
 
-* ``lc-ekf step``: CPU time per step of lc-ekf's ``step`` (``run_episode(use_batch=False)``),
-  the path the estimator FMU calls; the estimator FMU's doStep against empty + this shows
-  what the FMU layer (FMI calls, value store, Measurement building) adds.
+* ``estimator`` FMI 3: the same under FMI 3 (pythonfmu3).
+* ``lc-ekf step`` / ``lc-ekf step_row``: CPU time per step of lc-ekf's ``step``
+  (``run_episode(use_batch=False)``) and of its ``step_row`` fast path on the episode's
+  measurements (the path the estimator FMU calls); the estimator FMU's doStep against
+  empty + ``step_row`` shows what the FMU layer (FMI calls, checks, value store) adds.
 
 Rows are timed in interleaved rounds; the medians are printed, in microseconds of CPU
 time of this process per step (``time.process_time``; the FMUs run in this process), so
@@ -34,13 +36,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 from _empty_fmu import build_empty_fmu
 
 
 
 def main(steps: int = 1000, rounds: int = 3) -> None:
     from navsim import estimators
-    from navsim.episode import run_episode
+    from navsim.episode import make_context, measurement_batch, run_episode
     from navsim.fmu.build import build_fmu
     from navsim.fmu.master import Connection, FmuInstance
     from navsim.scenario import load_scenario
@@ -58,7 +61,14 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         empty = build_empty_fmu(tmp)
         plants = {fmi: build_fmu(scenario, "plant", fmi, Path(tmp) / f"plant{fmi}.fmu") for fmi in (2, 3)}
-        est_path = build_fmu(scenario, "estimator", 2, Path(tmp) / "est.fmu", estimator="lc-ekf")
+        est_paths = {fmi: build_fmu(scenario, "estimator", fmi, Path(tmp) / f"est{fmi}.fmu", estimator="lc-ekf")
+                     for fmi in (2, 3)}
+        sim = Simulator(scenario)
+        start = sim.reset(0)
+        context = make_context(sim)
+        prn = np.asarray(sim.constellation.prn)
+        meas = [b.measurement(i) for b in (measurement_batch(c, prn, dt) for c in sim.chunks(10_000))
+                for i in range(len(b))]
         for _ in range(rounds):
             with FmuInstance(empty, "empty") as inst:
                 inst.initialize()
@@ -89,25 +99,35 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
             add("lc_batch", float(record.step_time_s[warm:].mean()))
             record = run_episode(scenario, estimators.make("lc-ekf"), seed=0, use_batch=False)
             add("lc_step", float(record.step_time_s[warm:].mean()))
-            plant, est = FmuInstance(plants[2], "plant"), FmuInstance(est_path, "estimator")
-            try:
-                plant.initialize({"seed": 0})
-                est.initialize({})
-                push = Connection(plant, est).push
+            lc = estimators.make("lc-ekf")
+            lc.reset(context, start.prior)
+            step_row = lc.step_row
+            for m in meas[:warm]:
+                step_row(m)
+            t0 = clock()
+            for m in meas[warm:warm + steps]:
+                step_row(m)
+            add("lc_row", (clock() - t0) / steps)
+            for fmi, est_path in est_paths.items():
+                plant, est = FmuInstance(plants[fmi], "plant"), FmuInstance(est_path, "estimator")
+                try:
+                    plant.initialize({"seed": 0})
+                    est.initialize({})
+                    push = Connection(plant, est).push
 
-                push()
-                spent = 0.0
-                for k in range(warm + steps):
-                    plant.do_step(k * dt, dt)
                     push()
-                    t0 = clock()
-                    est.do_step(k * dt, dt)
-                    if k >= warm:
-                        spent += clock() - t0
-                add("estimator", spent / steps)
-            finally:
-                plant.free()
-                est.free()
+                    spent = 0.0
+                    for k in range(warm + steps):
+                        plant.do_step(k * dt, dt)
+                        push()
+                        t0 = clock()
+                        est.do_step(k * dt, dt)
+                        if k >= warm:
+                            spent += clock() - t0
+                    add(f"estimator{fmi}", spent / steps)
+                finally:
+                    plant.free()
+                    est.free()
     med = {k: statistics.median(v) for k, v in times.items()}
     floor_plant = med["empty"] + med["core"]
     floor_est = med["empty"] + med["lc_batch"]
@@ -124,13 +144,17 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
         print(f"| plant FMU doStep, FMI {fmi} | {m * us:.1f} | empty + core = {floor_plant * us:.1f} us "
               f"| {m / floor_plant:.2f} | <= 2 |")
     print(f"| lc-ekf step_batch per step (run_episode) | {med['lc_batch'] * us:.1f} | | | |")
-    print(f"| estimator FMU doStep (lc-ekf, FMI 2) | {med['estimator'] * us:.1f} | empty + lc-ekf batch = "
-          f"{floor_est * us:.1f} us | {med['estimator'] / floor_est:.2f} | <= 2 |")
-    floor_step = med["empty"] + med["lc_step"]
-    print(f"| lc-ekf step() per step (the estimator FMU's path) | {med['lc_step'] * us:.1f} | | | |")
-    print(f"| estimator FMU doStep against its own step path | {med['estimator'] * us:.1f} | empty + lc-ekf step = "
-          f"{floor_step * us:.1f} us | {med['estimator'] / floor_step:.2f} | |")
-
+    for fmi in (2, 3):
+        m = med[f"estimator{fmi}"]
+        print(f"| estimator FMU doStep (lc-ekf, FMI {fmi}) | {m * us:.1f} | empty + lc-ekf batch = "
+              f"{floor_est * us:.1f} us | {m / floor_est:.2f} | <= 2 |")
+    print(f"| lc-ekf step() per step | {med['lc_step'] * us:.1f} | | | |")
+    floor_row = med["empty"] + med["lc_row"]
+    print(f"| lc-ekf step_row per step (the estimator FMU's path) | {med['lc_row'] * us:.1f} | | | |")
+    for fmi in (2, 3):
+        m = med[f"estimator{fmi}"]
+        print(f"| estimator FMU doStep (FMI {fmi}) against its own step_row path | {m * us:.1f} | empty + lc-ekf "
+              f"step_row = {floor_row * us:.1f} us | {m / floor_row:.2f} | |")
 
 if __name__ == "__main__":
     main(*(int(a) for a in sys.argv[1:]))
