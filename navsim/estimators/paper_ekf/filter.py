@@ -189,6 +189,7 @@ class PaperEkf(NoiseScalable):
         self._riccati_layout()
         self._kargs = self._kernel_args() if cfg.engine != "python" and _kernel.available() else None
         self._kstate = None  # the compiled engine's state arrays while they hold the state
+        self._kstep_one = None  # kernel.step_one's compiled dispatcher, fetched on first use
         if self._kargs is not None:
             self._kstep = (*self._kargs, *self._kin)
         # --- initial state
@@ -1367,7 +1368,10 @@ class PaperEkf(NoiseScalable):
         st = self._kstate or self._k_arrays()
         sol = np.empty(9)
         cov9 = np.empty((9, 9))
-        status = _kernel.step_one_compiled(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
+        step_one = self._kstep_one
+        if step_one is None:  # the compiled dispatcher itself (no wrapper call per step)
+            step_one = self._kstep_one = _kernel.step_one_dispatcher()
+        status = step_one(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
                                            np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
                                            int(measurement.step), st[0], st[1], *self._kstep, sol, cov9)
         if status != _kernel.STATUS_DONE:

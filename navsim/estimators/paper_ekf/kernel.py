@@ -35,6 +35,7 @@ corrections).
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -861,3 +862,9 @@ def outputs_compiled(*args):
 def step_one_compiled(*args):
     """:func:`step_one` compiled."""
     return _get(2)(*args)
+
+
+def step_one_dispatcher() -> Callable[..., int]:
+    """The compiled :func:`step_one` itself (numba's dispatcher, compiled on first use), for
+    a caller that calls it every step without the :func:`step_one_compiled` wrapper."""
+    return _get(2)
