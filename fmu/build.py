@@ -33,6 +33,8 @@ import tempfile
 import uuid
 import zipfile
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 from xml.dom import minidom
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -40,6 +42,9 @@ from navsim.errors import ConfigError, DependencyNotInstalled
 
 from .runtime import META_FILE, SCENARIO_FILE, plant_defaults
 from .variables import UNITS, Dimensions, Var, estimator_variables, plant_variables, scalar_names
+
+if TYPE_CHECKING:
+    from navsim.scenario import Scenario
 
 __all__ = ["build_fmu", "model_description_xml", "variable_tables", "default_estimator", "host_environment",
            "HOST_REQUIREMENTS",
@@ -103,7 +108,7 @@ def host_environment() -> dict[str, str]:
     return {"LD_PRELOAD": lib, "PYTHONHOME": sys.base_prefix, "PYTHONPATH": sysconfig.get_paths()["purelib"]}
 
 
-def _require(kind_module: str, extra: str = "fmu"):
+def _require(kind_module: str, extra: str = "fmu") -> ModuleType:
     import importlib
 
     try:
@@ -113,7 +118,7 @@ def _require(kind_module: str, extra: str = "fmu"):
 
 
 # =========================================================================== XML
-def _fmt(var: Var, value) -> str:
+def _fmt(var: Var, value: float | int | bool | str) -> str:
     if var.type == "real":
         return repr(float(value))
     if var.type == "int":
@@ -181,7 +186,8 @@ def model_description_xml(kind: str, table: list[Var], fmi: int, *, model_name: 
     _log_categories(root, fmi)
     SubElement(root, "DefaultExperiment", startTime="0.0", stopTime=repr(float(duration_s)), stepSize=repr(float(step_s)))
     variables = SubElement(root, "ModelVariables")
-    outputs, initial_unknowns = [], []
+    outputs: list[int] = []
+    initial_unknowns: list[int] = []
     if fmi == 2:
         index = 0
         for var in table:
@@ -189,10 +195,10 @@ def model_description_xml(kind: str, table: list[Var], fmi: int, *, model_name: 
                 index += 1
                 a = {"name": name, "valueReference": str(index - 1), "description": var.description,
                      "causality": var.causality, "variability": var.variability}
-                if _initial(var):
-                    a["initial"] = _initial(var)
+                if initial := _initial(var):
+                    a["initial"] = initial
                 sv = SubElement(variables, "ScalarVariable", a)
-                t = {}
+                t: dict[str, str] = {}
                 if var.unit and var.type == "real":
                     t["unit"] = var.unit
                 if var.start is not None:
@@ -217,8 +223,8 @@ def model_description_xml(kind: str, table: list[Var], fmi: int, *, model_name: 
         for vr, var in enumerate(table, start=1):
             a = {"name": var.name, "valueReference": str(vr), "description": var.description,
                  "causality": var.causality, "variability": var.variability}
-            if _initial(var):
-                a["initial"] = _initial(var)
+            if initial := _initial(var):
+                a["initial"] = initial
             if var.unit and var.type == "real":
                 a["unit"] = var.unit
             if var.start is not None and var.type != "string":
@@ -272,7 +278,7 @@ pin_module_dict(globals())  # balances pythonfmu 0.7's loader (see pin_module_di
 """
 
 
-def _embed_scenario(scenario, resources: dict[str, bytes]):
+def _embed_scenario(scenario: Scenario, resources: dict[str, bytes]) -> str:
     """The scenario with its file references rewritten to files copied into resources/."""
     data = scenario.to_dict()
     if scenario.track.file:
@@ -318,7 +324,7 @@ def _embed_estimator(estimator: str, resources: dict[str, bytes]) -> str:
     return f"{USER_ESTIMATOR_DIR}/{path.name}:{attr}"
 
 
-def variable_tables(scenario, estimator: str | None = None, estimator_options: str = "") -> tuple[list[Var], list[Var]]:
+def variable_tables(scenario: Scenario, estimator: str | None = None, estimator_options: str = "") -> tuple[list[Var], list[Var]]:
     """The plant and the estimator FMU's variable tables for ``scenario`` (FMI-version independent)."""
     from navsim.simulator import Simulator
 
@@ -328,7 +334,7 @@ def variable_tables(scenario, estimator: str | None = None, estimator_options: s
                                        "estimator.options": estimator_options}))
 
 
-def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | None = None, *,
+def build_fmu(scenario: Scenario | str, what: str = "plant", fmi: int = 2, output: str | Path | None = None, *,
               estimator: str | None = None, estimator_options: str = "", guarded: bool = True) -> Path:
     """Build a plant or estimator FMU of ``scenario``.
 
@@ -392,6 +398,7 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     cls = "PlantSlave" if what == "plant" else "EstimatorSlave"
     resources[f"{module}.py"] = _SLAVE_SCRIPT.format(kind=what, fmi=fmi, cls=cls, identifier=identifier,
                                                               extra=_FMI2_PIN if fmi == 2 else "").encode()
+    assert shim.__file__ is not None, f"{shim.__name__} is a regular package"
     shim_dir = Path(shim.__file__).parent
     package = "pythonfmu" if fmi == 2 else "pythonfmu3"
     output = Path(output or f"{scenario.name}-{what}-fmi{fmi}.fmu")
@@ -417,7 +424,7 @@ def build_fmu(scenario, what: str = "plant", fmi: int = 2, output: str | Path | 
     return output
 
 
-def _write_resources(z, resources: dict[str, bytes], shim_dir: Path, package: str) -> None:
+def _write_resources(z: zipfile.ZipFile, resources: dict[str, bytes], shim_dir: Path, package: str) -> None:
     for name, blob in resources.items():
         z.writestr(f"resources/{name}", blob)
     for src in sorted(shim_dir.glob("*.py")):
@@ -430,7 +437,8 @@ def _write_resources(z, resources: dict[str, bytes], shim_dir: Path, package: st
 def parameter_references(table: list[Var], fmi: int) -> list[int]:
     """Value references of the parameters of ``table`` in an FMU of version ``fmi``
     (FMI 2: one per scalar, from 0; FMI 3: one per variable, from 1 after ``time``)."""
-    out, vr = [], 0 if fmi == 2 else 1
+    out: list[int] = []
+    vr = 0 if fmi == 2 else 1
     for var in table:
         n = len(scalar_names(var)) if fmi == 2 else 1
         if var.causality == "parameter":

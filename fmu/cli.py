@@ -21,15 +21,21 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
+from typing import TYPE_CHECKING, Any
 
 from navsim.errors import NavsimError
+
+if TYPE_CHECKING:
+    from navsim.episode import EpisodeRecord
+    from navsim.scenario import Scenario
 
 __all__ = ["add_fmu_parser"]
 
 
-def _scenario(args):
+def _scenario(args: argparse.Namespace) -> Scenario:
     from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -40,13 +46,13 @@ def _scenario(args):
     return scenario
 
 
-def _print_score(record) -> None:
+def _print_score(record: EpisodeRecord) -> None:
     from navsim.metrics import score_episode
 
     print(json.dumps(score_episode(record).to_flat_dict(), indent=1))
 
 
-def _cmd_build(args) -> int:
+def _cmd_build(args: argparse.Namespace) -> int:
     from .build import build_fmu
 
     path = build_fmu(_scenario(args), args.what, int(args.fmi), args.output, estimator=args.estimator,
@@ -64,7 +70,7 @@ def _cmd_build(args) -> int:
     return 0
 
 
-def _cmd_ssp(args) -> int:
+def _cmd_ssp(args: argparse.Namespace) -> int:
     from .ssp import build_ssp
 
     path = build_ssp(_scenario(args), args.output, estimator=args.estimator,
@@ -73,7 +79,7 @@ def _cmd_ssp(args) -> int:
     return 0
 
 
-def _cmd_validate(args) -> int:
+def _cmd_validate(args: argparse.Namespace) -> int:
     try:
         from fmpy.validation import validate_fmu
     except ImportError:
@@ -90,7 +96,7 @@ def _cmd_validate(args) -> int:
     return 1 if bad else 0
 
 
-def _cmd_cosim(args) -> int:
+def _cmd_cosim(args: argparse.Namespace) -> int:
     from .master import cosimulate
 
     record = cosimulate(args.plant, args.estimator_fmu, seed=args.seed, steps=args.steps, name="fmu",
@@ -99,7 +105,7 @@ def _cmd_cosim(args) -> int:
     return 0
 
 
-def _cmd_run(args) -> int:
+def _cmd_run(args: argparse.Namespace) -> int:
     from navsim import estimators
     from navsim.episode import run_episode
 
@@ -118,7 +124,7 @@ def _cmd_run(args) -> int:
     return 0
 
 
-def _cmd_host_env(args) -> int:
+def _cmd_host_env(args: argparse.Namespace) -> int:
     import shlex
 
     from .build import host_environment
@@ -128,14 +134,14 @@ def _cmd_host_env(args) -> int:
     return 0
 
 
-def _cmd_info(args) -> int:
+def _cmd_info(args: argparse.Namespace) -> int:
     from .build import HOST_REQUIREMENTS
 
     print(HOST_REQUIREMENTS, end="")
     return 0
 
 
-def add_fmu_parser(subparsers) -> None:
+def add_fmu_parser(subparsers: argparse._SubParsersAction[Any]) -> None:
     """Register ``navsim fmu ...`` on the ``navsim`` command's sub-parsers."""
     fmu = subparsers.add_parser("fmu", help="build, validate and run navsim FMUs; external FMUs as motion sources")
     sub = fmu.add_subparsers(dest="fmu_command", required=True)
@@ -195,8 +201,6 @@ def add_fmu_parser(subparsers) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Stand-alone entry point (``python -m navsim.fmu.cli``) until ``navsim`` wires it in."""
-    import argparse
-
     parser = argparse.ArgumentParser(prog="navsim")
     add_fmu_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)

@@ -26,10 +26,17 @@ import re
 import shutil
 import time
 from pathlib import Path
+from types import ModuleType, TracebackType
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
 from navsim.errors import DependencyNotInstalled, NavsimError
+from navsim.types import IntArray
+
+if TYPE_CHECKING:
+    from navsim.episode import EpisodeRecord
+    from navsim.scenario import Scenario
 
 __all__ = ["Connection", "FmuInstance", "FmuCallError", "cosimulate", "plant_scenario", "MASTERS"]
 
@@ -38,7 +45,7 @@ class FmuCallError(NavsimError):
     """An FMI call returned an error status (the FMU's log messages are in the text)."""
 
 
-def _fmpy():
+def _fmpy() -> ModuleType:
     try:
         import fmpy  # noqa: F401
     except ImportError:
@@ -68,12 +75,12 @@ class _Fmi2Logs:
     it in case other fmpy code in the process repointed it.
     """
 
-    def __init__(self):
-        self._logs: dict[int, list] = {}
+    def __init__(self) -> None:
+        self._logs: dict[int, list[tuple[int, str]]] = {}
         self._next = 1
-        self._thunk = None
-        self._probe = None
-        self._add_proxy = None
+        self._thunk: Any = None  # fmpy's ctypes objects (untyped), made by _setup
+        self._probe: Any = None
+        self._add_proxy: Callable[[], object] | None = None
 
     def _setup(self) -> None:
         from ctypes import byref
@@ -81,7 +88,7 @@ class _Fmi2Logs:
         from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         from fmpy.logging import addLoggerProxy
 
-        def dispatch(env, instance_name, status, category, message):
+        def dispatch(env: int | None, instance_name: bytes, status: int, category: bytes, message: bytes | str) -> None:
             log = self._logs.get(env or 0)
             if log is not None:
                 log.append((int(status), message.decode("utf-8", "replace") if isinstance(message, bytes)
@@ -91,7 +98,7 @@ class _Fmi2Logs:
         self._probe = fmi2CallbackFunctions()
         self._add_proxy = lambda: addLoggerProxy(byref(self._probe))
 
-    def register(self, log: list) -> int:
+    def register(self, log: list[tuple[int, str]]) -> int:
         if self._thunk is None:
             self._setup()
         key, self._next = self._next, self._next + 1
@@ -101,7 +108,7 @@ class _Fmi2Logs:
     def forget(self, key: int) -> None:
         self._logs.pop(key, None)
 
-    def attach(self, callbacks) -> None:
+    def attach(self, callbacks: Any) -> None:
         """Give ``callbacks`` the proxy (formatting) in front of the shared thunk."""
         callbacks.logger = self._thunk
         self.claim_proxy()
@@ -110,11 +117,12 @@ class _Fmi2Logs:
     def claim_proxy(self) -> None:
         """Point fmpy's proxy at the shared thunk (a no-op call but for one C call)."""
         self._probe.logger = self._thunk
+        assert self._add_proxy is not None, "register() sets up the proxy first"
         self._add_proxy()
 
 
 _FMI2_LOGS = _Fmi2Logs()
-_KEPT: list = []  # instances that returned Fatal, never freed (FmuInstance.free)
+_KEPT: list[tuple[Any, Any, Any]] = []  # instances that returned Fatal, never freed (FmuInstance.free)
 
 
 class FmuInstance:
@@ -177,7 +185,7 @@ class FmuInstance:
                                  modelIdentifier=identifier, instanceName=self.name)
             log = self.log  # FMI 3 loggers are not variadic: one callback per instance, no shared proxy
 
-            def keep(env, status, category, message):
+            def keep(env: object, status: int, category: bytes, message: bytes | str) -> None:
                 log.append((int(status), message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)))
 
             self._logger = keep
@@ -186,7 +194,7 @@ class FmuInstance:
             except Exception:
                 raise FmuCallError(f"{self.name}: instantiate failed: {'; '.join(m for _, m in self.log)}") from None
 
-    def _call(self, what: str, fn, *args):
+    def _call(self, what: str, fn: Callable[..., Any], *args: Any) -> Any:
         seen = len(self.log)
         if self.fmi == 2:
             _FMI2_LOGS.claim_proxy()
@@ -194,13 +202,15 @@ class FmuInstance:
             return fn(*args)
         except Exception as exc:
             status = getattr(exc, "status", None)
-            label = {2: "discard", 3: "error", 4: "fatal"}.get(status, type(exc).__name__)
+            labels: dict[Any, str] = {2: "discard", 3: "error", 4: "fatal"}
+            label = labels.get(status, type(exc).__name__)
             if status == 4:
                 self._fatal = True
             messages = "; ".join(m for _, m in self.log[seen:]) or str(exc)
             raise FmuCallError(f"{self.name}: {what} failed ({label}): {messages}") from exc
 
-    def initialize(self, parameters: dict | None = None, start_time: float = 0.0, stop_time: float | None = None):
+    def initialize(self, parameters: dict[str, Any] | None = None, start_time: float = 0.0,
+                   stop_time: float | None = None) -> None:
         """Set parameters and pass through initialisation mode."""
         if self.fmi == 2:
             self._call("setupExperiment", self.fmu.setupExperiment, None, start_time, stop_time)
@@ -247,10 +257,10 @@ class FmuInstance:
         if self._own_dir:
             shutil.rmtree(self.unzipdir, ignore_errors=True)
 
-    def __enter__(self):
+    def __enter__(self) -> FmuInstance:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: type[BaseException] | BaseException | TracebackType | None) -> None:
         self.free()
 
     # -- values ------------------------------------------------------------------------------
@@ -262,32 +272,32 @@ class FmuInstance:
         v = self.variables[name]
         return int(np.prod(v.shape)) if getattr(v, "shape", None) else 1
 
-    def _getter(self, type_: str):
+    def _getter(self, type_: str) -> Callable[..., Any]:
         f = self.fmu
         if self.fmi == 2:
             return {"real": f.getReal, "int": f.getInteger, "bool": f.getBoolean, "string": f.getString}[type_]
         return {"real": f.getFloat64, "int": f.getInt32, "bool": f.getBoolean, "string": f.getString}[type_]
 
-    def _setter(self, type_: str):
+    def _setter(self, type_: str) -> Callable[..., Any]:
         f = self.fmu
         if self.fmi == 2:
             return {"real": f.setReal, "int": f.setInteger, "bool": f.setBoolean, "string": f.setString}[type_]
         return {"real": f.setFloat64, "int": f.setInt32, "bool": f.setBoolean, "string": f.setString}[type_]
 
-    def get_raw(self, type_: str, vrs: list[int], n_values: int) -> list:
+    def get_raw(self, type_: str, vrs: list[int], n_values: int) -> list[Any]:
         getter = self._getter(type_)
         if self.fmi == 3 and type_ != "string":
             return list(self._call("get", getter, vrs, n_values))
         return list(self._call("get", getter, vrs))
 
-    def set_raw(self, type_: str, vrs: list[int], values: list) -> None:
+    def set_raw(self, type_: str, vrs: list[int], values: list[Any]) -> None:
         if type_ == "string":
             values = [v.decode() if isinstance(v, bytes) else str(v) for v in values]
         self._call("set", self._setter(type_), vrs, values)
 
-    def get(self, names) -> dict:
+    def get(self, names: Iterable[str]) -> dict[str, Any]:
         """Values by name (arrays as numpy arrays of the variable's shape)."""
-        out = {}
+        out: dict[str, Any] = {}
         for name in names:
             v = self.variables[name]
             type_ = self.type_of(name)
@@ -298,7 +308,7 @@ class FmuInstance:
             out[name] = np.asarray(raw).reshape(v.shape) if getattr(v, "shape", None) else raw[0]
         return out
 
-    def set(self, values: dict) -> None:
+    def set(self, values: dict[str, Any]) -> None:
         """Set variables by name (arrays flattened row-major)."""
         for name, value in values.items():
             v = self.variables[name]
@@ -331,9 +341,9 @@ class _Plan:
                 entry.setdefault(base, []).append((index, count))
             else:
                 entry[name] = [(shape, count, n)]
-        self.layout: dict[str, list[tuple[str, object, tuple]]] = {}
+        self.layout: dict[str, list[tuple[str, int | slice | IntArray, tuple[int, ...]]]] = {}
         for type_, entry in fields.items():
-            items = []
+            items: list[tuple[str, int | slice | IntArray, tuple[int, ...]]] = []
             for base, parts in entry.items():
                 if len(parts) == 1 and len(parts[0]) == 3:
                     shape, offset, n = parts[0]
@@ -344,11 +354,11 @@ class _Plan:
                     items.append((base, np.array([pos for _, pos in order]), shape))
             self.layout[type_] = items
 
-    def fetch(self) -> dict[str, list]:
+    def fetch(self) -> dict[str, list[Any]]:
         return {t: self.inst.get_raw(t, vrs, n) for t, (vrs, n) in self.groups.items()}
 
-    def unpack(self, raw: dict[str, list]) -> dict:
-        out = {}
+    def unpack(self, raw: dict[str, list[Any]]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
         for t, items in self.layout.items():
             values = raw[t]
             arr = None
@@ -376,7 +386,7 @@ class Connection:
         self.est = est
         self.src, self.dst = _Plan(plant, inputs), _Plan(est, inputs)
 
-    def push(self) -> dict:
+    def push(self) -> dict[str, list[Any]]:
         """Copy the plant's current outputs to the estimator's inputs; the raw values by type."""
         raw = self.src.fetch()
         for t, (vrs, _) in self.dst.groups.items():
@@ -385,7 +395,7 @@ class Connection:
 
 
 
-def plant_scenario(plant: FmuInstance, parameters: dict | None = None):
+def plant_scenario(plant: FmuInstance, parameters: dict[str, Any] | None = None) -> Scenario:
     """The effective scenario of a navsim plant FMU instance with ``parameters``."""
     from .runtime import effective_scenario, load_embedded, plant_defaults
 
@@ -398,8 +408,9 @@ MASTERS = ("plant-first", "estimator-first", "jacobi")
 
 
 def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, *,
-               plant_parameters: dict | None = None, estimator_parameters: dict | None = None,
-               steps: int | None = None, name: str = "", progress=None, master: str = "plant-first"):
+               plant_parameters: dict[str, Any] | None = None, estimator_parameters: dict[str, Any] | None = None,
+               steps: int | None = None, name: str = "", progress: Callable[[int], object] | None = None,
+               master: str = "plant-first") -> EpisodeRecord:
     """Run one episode of a navsim plant FMU and estimator FMU connected by name.
 
     ``master`` picks the order of each communication step of one navigation step (every
@@ -441,7 +452,7 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
         nav_names = [n for n, v in est.variables.items() if n.startswith("nav.")]
         nav_plan = _Plan(est, nav_names)
 
-        def push():
+        def push() -> dict[str, Any]:
             return link.src.unpack(link.push())
 
         timing = scenario.timing
@@ -452,11 +463,13 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
                       h=float(sensors["prior.h_m"]), velocity_n=np.asarray(sensors["prior.velocity_n"], float),
                       heading=float(sensors["prior.heading_rad"]), pitch=float(sensors["prior.pitch_rad"]),
                       roll=float(sensors["prior.roll_rad"]), covariance=scenario.initial.covariance())
-        rows_truth, rows_nav, cpu = [], [], []
-        epochs = []  # (plant step, t, n_valid, receiver outage)
+        rows_truth: list[dict[str, Any]] = []
+        rows_nav: list[dict[str, Any]] = []
+        cpu: list[float] = []
+        epochs: list[tuple[int, float, int, bool]] = []  # (plant step, t, n_valid, receiver outage)
         clock = time.process_time
 
-        def step_estimator(t):
+        def step_estimator(t: float) -> None:
             c0 = clock()
             est.do_step(t, dt)
             nav = nav_plan.unpack(nav_plan.fetch())
@@ -465,7 +478,7 @@ def cosimulate(plant_fmu: str | Path, estimator_fmu: str | Path, seed: int = 0, 
                 rows_nav.append(nav)
                 cpu.append(spent)
 
-        def step_plant(t):
+        def step_plant(t: float) -> None:
             plant.do_step(t, dt)
             rows_truth.append(truth_plan.unpack(truth_plan.fetch()))
 

@@ -37,12 +37,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from navsim.errors import ConfigError
-from navsim.simulator import Start
+from navsim.motion import ExternalMotion
+from navsim.simulator import Chunk, Simulator, Start
 
 from .master import FmuInstance
+
+if TYPE_CHECKING:
+    from navsim.scenario import Scenario
+
+InputValue = float | bool | str
+"""A value of an FMU input or parameter set by name (a Real / Integer, a Boolean, a String)."""
 
 __all__ = ["MotionMapping", "FmuMotionSource", "FmuDrivenSimulator", "parse_mapping"]
 
@@ -62,7 +69,7 @@ class MotionMapping:
     accel: str | None = "a"
     s_offset_m: float = 0.0
     s_scale: float = 1.0
-    inputs: dict = field(default_factory=dict)
+    inputs: dict[str, InputValue] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.s_scale not in (1.0, -1.0):
@@ -73,23 +80,23 @@ class MotionMapping:
 
 def parse_mapping(text: str, inputs: list[str] | None = None) -> MotionMapping:
     """``"s=x,speed=v,accel=a,offset=100,scale=-1"`` and ``["F=2e5"]`` -> MotionMapping."""
-    kw: dict = {}
+    kw: dict[str, Any] = {}
     for item in filter(None, (p.strip() for p in (text or "").split(","))):
         key, sep, value = item.partition("=")
         if not sep:
             raise ConfigError("--motion-map", "comma-separated key=value items", item)
-        key = {"s": "position", "position": "position", "speed": "speed", "accel": "accel",
-               "offset": "s_offset_m", "scale": "s_scale"}.get(key.strip())
-        if key is None:
+        name = {"s": "position", "position": "position", "speed": "speed", "accel": "accel",
+                "offset": "s_offset_m", "scale": "s_scale"}.get(key.strip())
+        if name is None:
             raise ConfigError("--motion-map", "keys s, speed, accel, offset, scale", item)
-        if key in ("s_offset_m", "s_scale"):
+        if name in ("s_offset_m", "s_scale"):
             try:
-                kw[key] = float(value)
+                kw[name] = float(value)
             except ValueError:
-                raise ConfigError(f"--motion-map {key}", "a number", value) from None
+                raise ConfigError(f"--motion-map {name}", "a number", value) from None
         else:
-            kw[key] = None if value.strip().lower() in ("", "none") else value.strip()
-    values = {}
+            kw[name] = None if value.strip().lower() in ("", "none") else value.strip()
+    values: dict[str, InputValue] = {}
     for item in inputs or ():
         key, sep, value = item.partition("=")
         if not sep:
@@ -114,7 +121,7 @@ class FmuMotionSource:
     """
 
     def __init__(self, fmu: str | Path, mapping: MotionMapping, step_s: float,
-                 input_schedule: Callable[[float], dict] | None = None):
+                 input_schedule: Callable[[float], dict[str, Any]] | None = None):
         self.path = Path(fmu)
         self.mapping = mapping
         self.step_s = float(step_s)
@@ -128,7 +135,7 @@ class FmuMotionSource:
         self._k = 0
         self._started = False
 
-    def _read(self):
+    def _read(self) -> tuple[float, float, float]:
         values = self.inst.get(self._names)
         m = self.mapping
         s = m.s_offset_m + m.s_scale * float(values[m.position])
@@ -170,60 +177,41 @@ class FmuMotionSource:
         self.inst.free()
 
 
-class FmuDrivenSimulator:
+class FmuDrivenSimulator(Simulator):
     """A :class:`~navsim.simulator.Simulator` whose motion comes from an external FMU.
 
-    Built as ``FmuDrivenSimulator(scenario, source)``; it *is* a Simulator (subclass
-    created on first use so that importing this module stays light). ``advance(n)``
-    steps the FMU n times and pushes each end-of-step state before generating;
-    ``reset(seed)`` restarts the FMU and starts the episode at its initial state.
+    Built as ``FmuDrivenSimulator(scenario, source)``; ``advance(n)`` steps the FMU n
+    times and pushes each end-of-step state before generating; ``reset(seed)`` restarts
+    the FMU and starts the episode at its initial state.
     """
 
-    def __new__(cls, scenario, source: FmuMotionSource):
-        return _driven_class()(scenario, source)
+    def __init__(self, scenario: Scenario, source: FmuMotionSource):
+        if abs(source.step_s - scenario.timing.nav_period_s) > 1e-12:
+            raise ConfigError("motion FMU step", f"the navigation step {scenario.timing.nav_period_s} s",
+                              source.step_s)
+        s0, v0, a0 = source.start()
+        self.source = source
+        self._a0 = a0
+        scenario = scenario.with_overrides({"motion": {"profile": "external", "start_s_m": s0, "speed_mps": v0}})
+        super().__init__(scenario)
 
+    def reset(self, seed: int | None = None) -> Start:
+        s0, v0, a0 = self.source.start()
+        start = super().reset(seed)
+        m = self.scenario.motion
+        if (s0, v0) != (m.start_s_m, m.speed_mps):
+            raise ConfigError("motion FMU", f"the same initial state at every reset ({m.start_s_m}, "
+                              f"{m.speed_mps})", (s0, v0))
+        if a0 != 0.0:  # the FMU's initial acceleration (Simulator.reset assumes 0)
+            assert isinstance(self.profile, ExternalMotion), "the scenario's profile is set to external"
+            self.profile.reset(0.0, s0, v0, a0)
+            start = Start(truth=self.truth_at([0.0]), prior=start.prior)
+        return start
 
-_CLASS = None
-
-
-def _driven_class():
-    global _CLASS
-    if _CLASS is not None:
-        return _CLASS
-    from navsim.simulator import Simulator
-
-    class _FmuDriven(Simulator):
-        __doc__ = FmuDrivenSimulator.__doc__
-
-        def __init__(self, scenario, source: FmuMotionSource):
-            if abs(source.step_s - scenario.timing.nav_period_s) > 1e-12:
-                raise ConfigError("motion FMU step", f"the navigation step {scenario.timing.nav_period_s} s",
-                                  source.step_s)
-            s0, v0, a0 = source.start()
-            self.source = source
-            self._a0 = a0
-            scenario = scenario.with_overrides({"motion": {"profile": "external", "start_s_m": s0, "speed_mps": v0}})
-            super().__init__(scenario)
-
-        def reset(self, seed=None) -> Start:
-            s0, v0, a0 = self.source.start()
-            start = super().reset(seed)
-            m = self.scenario.motion
-            if (s0, v0) != (m.start_s_m, m.speed_mps):
-                raise ConfigError("motion FMU", f"the same initial state at every reset ({m.start_s_m}, "
-                                  f"{m.speed_mps})", (s0, v0))
-            if a0 != 0.0:  # the FMU's initial acceleration (Simulator.reset assumes 0)
-                self.profile.reset(0.0, s0, v0, a0)
-                start = Start(truth=self.truth_at([0.0]), prior=start.prior)
-            return start
-
-        def advance(self, n_steps: int = 1):
-            k0 = self.step_index
-            n = min(int(n_steps), self.timing.steps - k0)
-            for k in range(k0, k0 + max(n, 0)):  # the state at the end of step k
-                s, v, a = self.source.step()
-                self.push_motion(s, v, a, t=(k + 1) * self.timing.nav_period_s)
-            return super().advance(n_steps)
-
-    _CLASS = _FmuDriven
-    return _CLASS
+    def advance(self, n_steps: int = 1) -> Chunk:
+        k0 = self.step_index
+        n = min(int(n_steps), self.timing.steps - k0)
+        for k in range(k0, k0 + max(n, 0)):  # the state at the end of step k
+            s, v, a = self.source.step()
+            self.push_motion(s, v, a, t=(k + 1) * self.timing.nav_period_s)
+        return super().advance(n_steps)

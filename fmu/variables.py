@@ -43,7 +43,7 @@ gives their SI base-unit exponents).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Mapping
 
 from navsim.signals import SIGNALS, Signal, optional_sensors, signal
 
@@ -82,6 +82,10 @@ UNITS: dict[str, dict[str, int]] = {
 }
 
 
+StartValue = float | int | bool | str | None
+"""A variable's start value (scalar, broadcast over its shape), ``None`` for calculated outputs."""
+
+
 @dataclass(frozen=True, slots=True)
 class Var:
     """One exchanged signal.
@@ -118,7 +122,7 @@ class Var:
     variability: str
     unit: str
     description: str
-    start: float | int | bool | str | None = None
+    start: StartValue = None
     shape: tuple[int, ...] = ()
     group: str = ""
     low: float | None = None
@@ -201,8 +205,9 @@ _FMI_TYPES = {"float64": "real", "int8": "bool", "int64": "int"}
 _NO_DIMS = Dimensions(0, 0, 0)  # for the signals of fixed shape (solution, prior, truth)
 
 
-def _zero(type_: str):
-    return {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
+def _zero(type_: str) -> float | int | bool | str:
+    zeros: dict[str, float | int | bool | str] = {"real": 0.0, "int": 0, "bool": False, "string": ""}
+    return zeros[type_]
 _TIME_NOTE = {"plant": " served (holds between steps)",
               "estimator": ": the plant's time.t_s, end time of the plant's latest navigation step"}
 
@@ -240,7 +245,8 @@ def _gnss_extras(dims: Dimensions, causality: str) -> list[Var]:
     start = causality == "input"
     n = dims.channels
 
-    def v(name, type_, unit, text, shape=(), low=None, high=None):
+    def v(name: str, type_: str, unit: str, text: str, shape: tuple[int, ...] = (), low: float | None = None,
+          high: float | None = None) -> Var:
         return Var(name, type_, causality, "discrete", unit, text, _zero(type_) if start else None, shape, "gnss",
                    low, high)
 
@@ -324,7 +330,7 @@ def _solution_vars(causality: str = "output") -> list[Var]:
 def _uncertainty_vars() -> list[Var]:
     """The standard deviations (FMU-only, from the covariance's diagonal), then the
     covariance, NIS and its degrees of freedom of the signal table."""
-    def v(name, unit, text):
+    def v(name: str, unit: str, text: str) -> Var:
         return Var(f"nav.{name}", "real", "output", "discrete", unit, text, None, (3,), "solution")
 
     return [
@@ -335,8 +341,8 @@ def _uncertainty_vars() -> list[Var]:
     ]
 
 
-def _plant_parameters(defaults: dict) -> list[Var]:
-    def p(name, type_, unit, text, variability="fixed"):
+def _plant_parameters(defaults: Mapping[str, StartValue]) -> list[Var]:
+    def p(name: str, type_: str, unit: str, text: str, variability: str = "fixed") -> Var:
         return Var(name, type_, "parameter", variability, unit, text, defaults.get(name), (), "parameter")
 
     return [
@@ -361,8 +367,8 @@ def _plant_parameters(defaults: dict) -> list[Var]:
     ]
 
 
-def _motion_inputs(defaults: dict) -> list[Var]:
-    def v(name, unit, text):
+def _motion_inputs(defaults: Mapping[str, StartValue]) -> list[Var]:
+    def v(name: str, unit: str, text: str) -> Var:
         return Var(name, "real", "input", "continuous", unit, text, defaults.get(name, 0.0), (), "motion")
 
     return [
@@ -373,7 +379,7 @@ def _motion_inputs(defaults: dict) -> list[Var]:
 
 
 # --------------------------------------------------------------------------- tables
-def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
+def plant_variables(dims: Dimensions, defaults: Mapping[str, StartValue] | None = None) -> list[Var]:
     """The plant FMU's variables, in value-reference order.
 
     ``defaults`` maps parameter and input names to start values (from the scenario).
@@ -383,7 +389,7 @@ def plant_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]
             + _sensor_vars(dims, "output") + _truth_vars() + _prior_vars("output"))
 
 
-def estimator_variables(dims: Dimensions, defaults: dict | None = None) -> list[Var]:
+def estimator_variables(dims: Dimensions, defaults: Mapping[str, StartValue] | None = None) -> list[Var]:
     """The estimator FMU's variables: the plant's sensor outputs and prior as inputs, the
     solution and its uncertainty as outputs (same names as the plant's, so connections
     go by name)."""
