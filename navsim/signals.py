@@ -503,7 +503,7 @@ class ObservationCodec:
     hands out, bit for bit). ``prn`` is the channel order.
     """
 
-    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_odometer", "_baro", "_per_step", "_terminal")
+    __slots__ = ("layout", "prn", "signals", "keys", "_dt", "_per_step", "_terminal")
 
     def __init__(self, layout: Layout, prn: np.ndarray) -> None:
         self.layout = layout
@@ -511,8 +511,6 @@ class ObservationCodec:
         self.signals = observation_signals(layout)
         self.keys = tuple(s.name for s in self.signals)
         self._dt = float(layout.nav_period_s)
-        self._odometer = bool(layout.odometer)
-        self._baro = bool(layout.baro)
         self._per_step = tuple(s for s in self.signals if s.source and s.measurement)
         terminal = {s.name: np.zeros(s.size(layout), dtype=s.dtype) for s in self.signals}
         terminal["t"][0] = layout.duration_s
@@ -573,11 +571,13 @@ class ObservationCodec:
             gnss = GnssObservation(t, self.prn, obs["sat_pos_e"].reshape(-1, 3), obs["sat_vel_e"].reshape(-1, 3),
                                    obs["pseudorange_m"], obs["pseudorange_rate_mps"],
                                    np.asarray(obs["gnss_valid"], dtype=bool))
-        odometer = obs.get("odometer_ds") if self._odometer else None
-        baro = obs.get("baro_alt") if self._baro else None
+        readings = {}
+        for sig in self._per_step:  # the optional sensors' readings, by their declared Measurement field
+            value = obs.get(sig.name)
+            if value is not None:
+                readings[sig.measurement] = float(value[0])
         return Measurement(step, t, self._dt, obs["dtheta_r"].reshape(-1, 3), obs["dv_r"].reshape(-1, 3),
-                           obs["dtheta_sub"].reshape(-1, 3), obs["dv_sub"].reshape(-1, 3), gnss,
-                           None if odometer is None else float(odometer[0]), None if baro is None else float(baro[0]))
+                           obs["dtheta_sub"].reshape(-1, 3), obs["dv_sub"].reshape(-1, 3), gnss, **readings)
 
     def encode_batch_chunk(self, chunk: Any) -> BatchObservations:
         """The observations of a :class:`navsim.simulator.ChunkBatch` of N lockstep members:
@@ -617,7 +617,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 class BatchObservations:
     """Per-step observations of N lockstep members (see :meth:`ObservationCodec.encode_batch_chunk`)."""
 
-    __slots__ = ("_epoch_at", "_t", "_new_epoch", "_imu", "_odometer", "_baro", "_valid", "_pr", "_prr", "_sat_pos",
+    __slots__ = ("_epoch_at", "_t", "_new_epoch", "_imu", "_per_step", "_valid", "_pr", "_prr", "_sat_pos",
                  "_sat_vel", "_no_gnss")
 
     def __init__(self, codec: ObservationCodec, chunk: Any) -> None:
@@ -635,8 +635,13 @@ class BatchObservations:
                      ("dv_r", _read_only(imu.dv_r.reshape(n_env, c, -1))),
                      ("dtheta_sub", _read_only(imu.dtheta_sample[:, :, :, 0, :].reshape(n_env, c, -1))),
                      ("dv_sub", _read_only(imu.dv_sample[:, :, :, 0, :].reshape(n_env, c, -1))))
-        self._odometer = _frozen(chunk.odometer.ds_m.reshape(n_env, c, 1)) if codec.layout.odometer else None
-        self._baro = _frozen(chunk.baro.altitude_m.reshape(n_env, c, 1)) if codec.layout.baro else None
+        # the optional sensors' entries (N, c, size), from their declared chunk arrays
+        per_step = []
+        for sig in codec.measurement_signals:
+            values = sig.read(chunk)
+            if values is not None:
+                per_step.append((sig.name, _frozen(values.reshape(n_env, c, -1))))
+        self._per_step = tuple(per_step)
         self._no_gnss = {"gnss_valid": _frozen(np.zeros((n_env, k), dtype=np.int8)),
                          "pseudorange_m": _frozen(np.zeros((n_env, k))),
                          "pseudorange_rate_mps": _frozen(np.zeros((n_env, k))),
@@ -665,8 +670,6 @@ class BatchObservations:
             obs[key] = rows[:, i]
         obs["gnss_new_epoch"] = self._new_epoch[i]
         obs.update(gnss)
-        if self._odometer is not None:
-            obs["odometer_ds"] = self._odometer[:, i]
-        if self._baro is not None:
-            obs["baro_alt"] = self._baro[:, i]
+        for key, rows in self._per_step:
+            obs[key] = rows[:, i]
         return obs
