@@ -187,11 +187,10 @@ class PaperEkf(NoiseScalable):
         self._stage_c = self._make_stage(cmath.sin, cmath.cos, cmath.sqrt, scalars)
         self._fused = self._make_fused()
         self._riccati_layout()
+        self._kpack: tuple | None = None  # the compiled engine's packed buffers (kernel.pack), made by _kernel_args
         self._kargs = self._kernel_args() if cfg.engine != "python" and _kernel.available() else None
         self._kstate = None  # the compiled engine's state arrays while they hold the state
-        self._kstep_one = None  # kernel.step_one's compiled dispatcher, fetched on first use
-        if self._kargs is not None:
-            self._kstep = (*self._kargs, *self._kin)
+        self._kstep_one = None  # kernel.step_packed's compiled dispatcher, fetched on first use
         # --- initial state
         y0, p0 = self._state_from_prior(prior)
         self._Y = y0
@@ -896,12 +895,17 @@ class PaperEkf(NoiseScalable):
             self._spe, self._n_c, tf.single, tf.order, self._h_all)
         bar_idx = np.array([i for i, _ in self._bar_fix], dtype=np.int64)
         bar_col = np.array([j for _, j in self._bar_fix], dtype=np.int64)
-        self._kwork = np.zeros(_kernel.work_size(self.n_states))
-        self._kin = (np.ascontiguousarray(self._lvec, dtype=float), np.ascontiguousarray(self._dt_pow, dtype=float),
-                     self._kwork)
-        return (c, ic, np.ascontiguousarray(tf._breaks_arr, dtype=float), np.ascontiguousarray(tf._lam_arr, dtype=float),
-                np.ascontiguousarray(tf._h_arr, dtype=float), self._H, self._h_flat_idx.astype(np.int64),
-                np.array(self._h_sup, dtype=np.int64), bar_idx, bar_col)
+        # every array of the engine is a view of two buffers (kernel.pack): the step-wise path
+        # hands the compiled step_packed 8 arguments instead of step_one's 21
+        fbuf, ibuf, views = _kernel.pack(
+            c, ic, np.asarray(tf._breaks_arr, dtype=float), np.asarray(tf._lam_arr, dtype=float),
+            np.asarray(tf._h_arr, dtype=float), self._H, self._h_flat_idx.astype(np.int64),
+            np.array(self._h_sup, dtype=np.int64), bar_idx, bar_col, np.asarray(self._lvec, dtype=float),
+            np.asarray(self._dt_pow, dtype=float), _kernel.work_size(self.n_states), self.n_states)
+        self._H = views[5]  # the reference engine's H (_h_matrix) is the engine's, as before
+        self._kwork = views[12]
+        self._kpack = (fbuf, ibuf, views[13], views[14])
+        return views[:10]
 
     def _k_arrays(self):
         """The compiled engine's state: (flat [Y, K, P, P_start], cov counters, Y, K, P, P_start
@@ -909,7 +913,8 @@ class PaperEkf(NoiseScalable):
         st = self._kstate
         if st is None:
             ns = self.n_states
-            flat = np.empty(2 * ns + 2 * ns * ns)
+            pk = self._kpack
+            flat = np.empty(2 * ns + 2 * ns * ns) if pk is None else pk[2]
             Y, K = flat[:ns], flat[ns:2 * ns]
             P = flat[2 * ns:2 * ns + ns * ns].reshape(ns, ns)
             P_start = flat[2 * ns + ns * ns:].reshape(ns, ns)
@@ -917,7 +922,8 @@ class PaperEkf(NoiseScalable):
             K[:] = 0.0 if self._K is None else self._K
             P[:] = self._P
             P_start[:] = self._P_start
-            cov = np.array([self._cov_left, self._cov_len, self._cov_pos], dtype=np.int64)
+            cov = np.empty(3, dtype=np.int64) if pk is None else pk[3]
+            cov[:] = (self._cov_left, self._cov_len, self._cov_pos)
             st = self._kstate = (flat, cov, Y, K, P, P_start)
         return st
 
@@ -1365,15 +1371,17 @@ class PaperEkf(NoiseScalable):
         """The step-wise path of the compiled engine for a step without an epoch: (solution
         row (9,), covariance (9, 9)); None when the step needs the general path (sub-steps,
         a failure), the state then unchanged."""
-        st = self._kstate or self._k_arrays()
+        if self._kstate is None:  # the state into the packed buffers (views of kernel.pack)
+            self._k_arrays()
         sol = np.empty(9)
         cov9 = np.empty((9, 9))
         step_one = self._kstep_one
         if step_one is None:  # the compiled dispatcher itself (no wrapper call per step)
-            step_one = self._kstep_one = _kernel.step_one_dispatcher()
+            step_one = self._kstep_one = _kernel.step_packed_dispatcher()
+        fbuf, ibuf = self._kpack[:2]
         status = step_one(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
-                                           np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
-                                           int(measurement.step), st[0], st[1], *self._kstep, sol, cov9)
+                          np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
+                          int(measurement.step), fbuf, ibuf, sol, cov9)
         if status != _kernel.STATUS_DONE:
             return None
         return sol, cov9

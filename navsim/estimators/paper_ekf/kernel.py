@@ -17,6 +17,10 @@ The functions are plain Python written in the subset that numba compiles (arrays
 scalars, no Python objects); :func:`advance` is the compiled driver (numba, optional extra
 ``fast``; compiled on its first call and cached on disk); :func:`advance_py` runs the same
 source uncompiled, slowly (tests; ``advance_uncompiled`` keeps it after compilation).
+:func:`step_one` is one navigation step without an epoch (the step-wise path: inputs,
+:func:`advance_py`, outputs); :func:`step_packed` is the same call with the constants, the
+work array and the state taken from the two buffers of :func:`pack` (8 arguments instead of
+21: numba's dispatcher checks the type of every argument of every call).
 
 :func:`advance_py` advances over a run of navigation steps and stops, handing control back
 to the caller, at (a) a step whose start-up stiffness needs adaptive sub-steps (the gain
@@ -42,8 +46,8 @@ import numpy as np
 from navsim.jit import available
 
 __all__ = ["STATUS_DONE", "STATUS_SUBSTEPS", "STATUS_FAILED", "STATUS_EPOCH", "advance", "advance_py",
-           "available", "work_size", "outputs", "outputs_compiled", "prepare_row", "step_one", "step_one_compiled",
-           "track_scalars", "track_scalars3"]
+           "available", "work_size", "outputs", "outputs_compiled", "pack", "prepare_row", "step_one", "step_one_compiled",
+           "step_packed", "track_scalars", "track_scalars3"]
 
 STATUS_DONE = 0  # all steps advanced
 STATUS_SUBSTEPS = 1  # step i needs adaptive sub-steps (not advanced)
@@ -828,6 +832,70 @@ def step_one(dtheta_r, dv_r, t, step, state, cov, c, ic, breaks, lam_c, h_c, H, 
     return status
 
 
+# ---------------------------------------------------------------------------- packed arguments
+# Header of the int buffer of :func:`step_packed` (made by :func:`pack`): sizes, then the start
+# of each float section (in order c, breaks, lam_c, h_c, H, lvec, dt_pow, work, state, end) and
+# of each int section (in order ic, flat, h_sup, bar_idx, bar_col, cov, end).
+P_N, P_R, P_NB, P_ORDER = range(4)
+P_F0 = 4  # 10 float section starts follow
+P_I0 = P_F0 + 10  # 7 int section starts follow
+P_HEADER = P_I0 + 7
+
+
+def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_pow, n_work, n):
+    """One float64 and one int64 buffer holding the constants, the work array and the state
+    of :func:`step_one` (copies of the arguments), and their views in the buffers.
+
+    Returns ``(fbuf, ibuf, views)`` with ``views`` = (c, ic, breaks, lam_c, h_c, H, flat, h_sup,
+    bar_idx, bar_col, lvec, dt_pow, work, state, cov): C-contiguous views of the buffers with
+    the shapes of the arguments (``work`` of ``n_work`` floats, ``state`` of 2n + 2n^2 floats
+    and ``cov`` of 3 ints, both uninitialised). The caller uses the views in place of its own
+    arrays, so the batch engine and :func:`step_packed` share the same memory."""
+    fparts = [np.ravel(c), np.ravel(breaks), np.ravel(lam_c), np.ravel(h_c), np.ravel(H), np.ravel(lvec),
+              np.ravel(dt_pow), np.zeros(n_work), np.zeros(2 * n + 2 * n * n)]
+    iparts = [np.ravel(ic), np.ravel(flat), np.ravel(h_sup), np.ravel(bar_idx), np.ravel(bar_col),
+              np.zeros(3, dtype=np.int64)]
+    fstart = np.cumsum([0] + [len(x) for x in fparts])
+    istart = np.cumsum([P_HEADER] + [len(x) for x in iparts])
+    fbuf = np.empty(int(fstart[-1]))
+    ibuf = np.zeros(int(istart[-1]), dtype=np.int64)
+    ibuf[P_N], ibuf[P_R], ibuf[P_NB], ibuf[P_ORDER] = n, len(dt_pow), len(breaks), lam_c.shape[1]
+    ibuf[P_F0:P_F0 + 10] = fstart
+    ibuf[P_I0:P_I0 + 7] = istart
+    fv = [fbuf[fstart[k]:fstart[k + 1]] for k in range(9)]
+    iv = [ibuf[istart[k]:istart[k + 1]] for k in range(6)]
+    for view, part in zip(fv + iv, fparts + iparts):
+        view[:] = part
+    shapes = [np.shape(c), np.shape(breaks), np.shape(lam_c), np.shape(h_c), np.shape(H), np.shape(lvec),
+              np.shape(dt_pow), (n_work,), (2 * n + 2 * n * n,)]
+    fv = [v.reshape(shape) for v, shape in zip(fv, shapes)]
+    c_v, breaks_v, lam_v, h_v, H_v, lvec_v, dt_pow_v, work_v, state_v = fv
+    ic_v, flat_v, h_sup_v, bar_idx_v, bar_col_v, cov_v = iv
+    return fbuf, ibuf, (c_v, ic_v, breaks_v, lam_v, h_v, H_v, flat_v, h_sup_v, bar_idx_v, bar_col_v, lvec_v,
+                        dt_pow_v, work_v, state_v, cov_v)
+
+
+def step_packed(dtheta_r, dv_r, t, step, fbuf, ibuf, sol, cov9):
+    """:func:`step_one` with its constants, work array and state taken from the buffers of
+    :func:`pack` (few arguments: the compiled dispatcher checks the type of each argument
+    on every call). The same function on the same arrays: the same numbers."""
+    n, R, nb, order = ibuf[P_N], ibuf[P_R], ibuf[P_NB], ibuf[P_ORDER]
+    f = ibuf[P_F0:P_F0 + 10]
+    i = ibuf[P_I0:P_I0 + 7]
+    c = fbuf[f[0]:f[1]]
+    breaks = fbuf[f[1]:f[2]]
+    lam_c = fbuf[f[2]:f[3]].reshape((nb, order))
+    h_c = fbuf[f[3]:f[4]].reshape((nb, order))
+    H = fbuf[f[4]:f[5]].reshape((2 * n, 2 * n))
+    lvec = fbuf[f[5]:f[6]].reshape((3, R))
+    dt_pow = fbuf[f[6]:f[7]]
+    work = fbuf[f[7]:f[8]]
+    state = fbuf[f[8]:f[9]]
+    return step_one(dtheta_r, dv_r, t, step, state, ibuf[i[5]:i[6]], c, ibuf[i[0]:i[1]], breaks, lam_c, h_c, H,
+                    ibuf[i[1]:i[2]], ibuf[i[2]:i[3]], ibuf[i[3]:i[4]], ibuf[i[4]:i[5]], lvec, dt_pow, work, sol,
+                    cov9)
+
+
 _compiled = []
 
 
@@ -838,9 +906,9 @@ def _compile():
     g = globals()
     for name in ("_piece", "track_scalars", "track_scalars3", "_horner2", "_horner3", "stage", "_kphi", "fused",
                  "_stage_cstep", "_fill_h", "_gain", "_quad", "riccati_rk4", "_rows_ok", "state_rk4", "advance_py",
-                 "prepare_row", "_ek", "_clip1", "output_row"):
+                 "prepare_row", "_ek", "_clip1", "output_row", "step_one"):
         g[name] = jit(g[name])
-    return g["advance_py"], jit(outputs), jit(step_one)
+    return g["advance_py"], jit(outputs), g["step_one"], jit(step_packed)
 
 
 def _get(i):
@@ -868,3 +936,8 @@ def step_one_dispatcher() -> Callable[..., int]:
     """The compiled :func:`step_one` itself (numba's dispatcher, compiled on first use), for
     a caller that calls it every step without the :func:`step_one_compiled` wrapper."""
     return _get(2)
+
+
+def step_packed_dispatcher() -> Callable[..., int]:
+    """The compiled :func:`step_packed` (numba's dispatcher, compiled on first use)."""
+    return _get(3)
