@@ -24,12 +24,32 @@ Rows
   :mod:`navsim.sensors.imu.kernel`), and the last row times those draws alone, the
   limit of that path (the vector env can exceed the NumPy floor);
 
-Timing: interleaved windows (one window of every row per round, all envs built first),
-the median of ``--rounds`` windows per row; the machine's
-load average is printed (the machine may be shared). The vector envs and the floor are
-also given per CPU second of this process (``time.process_time``, all threads), the
-figure to compare with the floor on a loaded machine; with ``threads=2`` CPU time
-counts both threads, so its speed-up is read from the wall-clock column.
+Timing: interleaved windows (one window of every row per round, all envs built first and
+stepped through two chunks before the first window, so that both output buffer sets are
+written), the median of ``--rounds`` windows per row; the machine's load average is
+printed (the machine may be shared). A vector env's window is a whole number of chunks
+and starts at a chunk's first step, so it holds the generation of as many chunks as it
+serves (with ``threads=2`` the next chunk is generated ahead while the current one is
+served: a window must not end with a chunk half generated). The vector envs and the floor
+are also given per CPU second of this process (``time.process_time``, all threads), the
+figure to compare with the floor on a loaded machine; with ``threads=2`` CPU time counts
+every thread, so its speed-up is read from the wall-clock column. Beside the wall-clock
+ratio of ``threads=2`` to one thread the benchmark prints
+
+* the parallel efficiency E = (one thread's CPU time per member-step) / (2 x the two
+  threads' wall time per member-step): 1 when the two cores do the one-thread work in
+  half the time, less sensitive to other processes than the wall-clock ratio (the
+  reference is CPU time);
+* the serial fraction f = 1 / E - 1 (the Karp-Flatt metric for 2 processors: the
+  speed-up S = 2 E is that of Amdahl's law with a fraction f that does not run in
+  parallel, S = 1 / (f + (1 - f) / 2));
+* the CPU cost of the second thread: CPU time per member-step with two threads over one
+  (thread hand-offs, shared caches and memory bandwidth, the GIL);
+* the calling thread's share of the CPU time with two threads (``time.thread_time``: the
+  steps themselves, the rest runs on the chunk and IMU threads).
+
+The goal of issue 13 (``threads=2`` at least 1.7 times one thread on two idle cores) is E
+>= 0.85, i.e. f <= 0.18, when the two threads cost no more CPU than one.
 
 Usage: ``python benchmarks/bench_env.py [--rounds 3] [--quick]``
 """
@@ -65,14 +85,16 @@ def _single_rate(env, action, seconds: float) -> float:
             return n / (now - t0)
 
 
-def _vector_rate(venv, steps: int) -> tuple[float, float]:
-    """(member-steps per CPU second of this process, per wall second)."""
+def _vector_rate(venv, steps: int) -> tuple[float, float, float]:
+    """(member-steps per CPU second of this process, per wall second, per CPU second of
+    the calling thread)."""
     n = venv.num_envs
     action = np.zeros((n, 9))
-    c0, t0 = time.process_time(), time.perf_counter()
+    c0, t0, m0 = time.process_time(), time.perf_counter(), time.thread_time()
     for _ in range(steps):
         venv.step(action)
-    return steps * n / (time.process_time() - c0), steps * n / (time.perf_counter() - t0)
+    return (steps * n / (time.process_time() - c0), steps * n / (time.perf_counter() - t0),
+            steps * n / (time.thread_time() - m0))
 
 
 def _draw_floor(n: int, steps: int, compiled: bool = False):
@@ -148,17 +170,22 @@ def main() -> None:
         vector_rows.append(("native vector env, N = 1024, 2 threads", 1024, "vector_entry_point", 2))
         vector_rows.append(("native vector env, N = 1024, NumPy IMU path (no numba)", 1024, "vector_entry_point", 1))
     cpu: dict[str, list[float]] = {}
+    main_cpu: dict[str, list[float]] = {}
     envs = {}
     for label, n, mode, threads in vector_rows:
         extra = {"threads": threads} if mode == "vector_entry_point" else {}
         venv = gym.make_vec("navsim/PaperRail-v0", num_envs=n, vectorization_mode=mode, score=False, **extra)
         venv.reset(seed=0)
         chunk = getattr(venv.unwrapped, "chunk_steps", 4000)
-        steps = 2 * chunk + 10 if not args.quick else chunk + 10
+        steps = 2 * chunk if not args.quick else chunk  # whole chunks from a chunk's first step
         if mode == "sync":
             steps = min(steps, 3000)
+        imu_apply.USE_KERNEL = "NumPy IMU path" not in label
+        for _ in range(steps):  # warm-up: both output buffer sets written once
+            venv.step(np.zeros((n, 9)))
+        imu_apply.USE_KERNEL = True
         envs[label] = (venv, steps)
-        rates[label], cpu[label] = [], []
+        rates[label], cpu[label], main_cpu[label] = [], [], []
     floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
     compiled_label = "the same draws through the compiled group draws (numba), N = 1024"
     floors = {floor_label: _draw_floor(1024, 256)}
@@ -167,9 +194,10 @@ def main() -> None:
     for _ in range(rounds):  # interleaved: one window of every row per round
         for label, (venv, steps) in envs.items():
             imu_apply.USE_KERNEL = "NumPy IMU path" not in label
-            c, w = _vector_rate(venv, steps)
+            c, w, m = _vector_rate(venv, steps)
             rates[label].append(w)
             cpu[label].append(c)
+            main_cpu[label].append(m)
         imu_apply.USE_KERNEL = True
         for label, window in floors.items():
             cpu.setdefault(label, []).append(window())
@@ -194,9 +222,16 @@ def main() -> None:
         else:
             print(f"| {label} | | | {cols}")
     if not args.quick:
-        one, two = (statistics.median(rates[f"native vector env, N = 1024{x}"]) for x in ("", ", 2 threads"))
+        one_label, two_label = "native vector env, N = 1024", "native vector env, N = 1024, 2 threads"
+        one, two = (statistics.median(rates[x]) for x in (one_label, two_label))
+        one_cpu, two_cpu = (statistics.median(cpu[x]) for x in (one_label, two_label))
+        efficiency = two / (2.0 * one_cpu)  # (1-thread CPU s per member-step) / (2 x 2-thread wall s per member-step)
+        two_main = statistics.median(main_cpu[two_label])
         print(f"\nthreads=2 / one thread at N = 1024 (wall): {two / one:.2f} (goal 1.7 on 2 idle cores; the load "
-              "average above says how idle they were)")
+              f"average above says how idle they were); parallel efficiency E = (one thread's CPU time) / (2 x two "
+              f"threads' wall time) per member-step: {efficiency:.2f} (goal 0.85); serial fraction 1/E - 1: "
+              f"{1.0 / efficiency - 1.0:.2f}; CPU time per member-step, two threads / one: {one_cpu / two_cpu:.2f}; "
+              f"the calling thread's share of the two threads' CPU time: {two_cpu / two_main:.2f}")
 
 
 if __name__ == "__main__":

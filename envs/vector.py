@@ -31,9 +31,23 @@ Where the time goes
     own bit generator, the same numbers), faster than NumPy's own fill; the chunk buffers
     are reused once no observation references them, and the members' sensor states are
     carried as arrays between chunks. ``benchmarks/bench_env.py`` prints the rate beside
-    both draw limits (NumPy's fill and the compiled draws alone). ``threads=2`` or more
-    splits the members' IMU pass over worker threads while the calling thread generates
-    the GNSS and outage epochs; the step itself (reward, info) stays on the calling thread.
+    both draw limits (NumPy's fill and the compiled draws alone).
+
+Threads
+    ``threads=2`` or more: the next chunk is generated on a thread of its own while the
+    steps of the current chunk are served (the chunks do not depend on the actions:
+    scripted motion), its IMU pass split over ``threads`` worker threads of the
+    :class:`~navsim.simulator.SimulatorBatch`, each a run of member groups (their draws
+    and their arithmetic), while the chunk thread generates the GNSS, outage, odometer
+    and barometer data. The calling thread then only steps (reward, observation views,
+    info), the chunk-invariant generation never waits for a step and a step waits for a
+    chunk only at its boundary: the part of the work that is not split (the steps)
+    overlaps with the generation instead of following it.
+    The next chunk is started at the first step of the current one, when the caller
+    holds only the current chunk's observations, so that it takes the output buffers of
+    the previous chunk; a reset or ``close`` waits for a chunk being generated and
+    discards it. The members' simulators (:attr:`sims`) are then one chunk ahead of the
+    served step. Every member's numbers are those of ``threads=1``.
 """
 
 from __future__ import annotations
@@ -76,7 +90,9 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
 
     Parameters are those of :class:`~navsim.envs.navigation.NavigationEnv` plus
     ``num_envs``; ``chunk_steps`` defaults to about 2^18 / N (memory bound); ``threads``
-    (default 1) spreads the IMU error pass over threads (the numbers do not change).
+    (default 1): 2 or more generate the next chunk ahead on a thread of its own, its IMU
+    pass split over ``threads`` worker threads (module docstring, "Threads"; the numbers
+    do not change).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": 20}
@@ -105,6 +121,14 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.num_envs = int(num_envs)
         self.scenario = resolve_scenario(scenario, overrides)
         self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads)
+        # threads >= 2: the next chunk is generated on a thread of its own while the steps
+        # of the current one are served (the chunks do not depend on the actions)
+        self._loader = None
+        self._next = None  # the Future of the next chunk
+        if self.batch.threads > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._loader = ThreadPoolExecutor(1, thread_name_prefix="navsim-vector-chunk")
         base = self.batch.members[0]
         self.context = make_context(base)
         self.prn = np.asarray(base.constellation.prn)
@@ -166,6 +190,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         return self._reset_all(seeds)
 
     def _reset_all(self, seeds: list):
+        self._drain()
         # as NavigationEnv.reset: a missing seed is drawn from the sub-env's generator
         self.seeds = [int(s) if s is not None else int(rng.integers(0, 2**63 - 1)) for s, rng in zip(seeds, self._rngs)]
         self.priors = [start.prior for start in self.batch.reset(self.seeds)]
@@ -189,26 +214,34 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
                 info["_" + key] = np.ones(n, dtype=bool)
         return self._obs(0), info
 
-    def _load_chunk(self) -> None:
+    def _make_chunk(self) -> tuple:
+        """The next chunk and what its steps serve: the shared truth rows, the observation
+        views, the held outage flags and satellite counts. On the chunk thread with
+        ``threads`` >= 2 (one chunk at a time, in order: the held flags carry over)."""
         n_env = self.num_envs
         chunk = self.batch.advance(self.chunk_steps)
-        c = len(chunk)
-        if self.tapes is not None:
-            for j, tape in enumerate(self.tapes):
-                tape.add_chunk(chunk.member(j))
-        truth, epoch_at = chunk_truth_table(chunk, self.batch.members[0].earth)
-        self._truth = truth  # (c, 12) shared by the members
-        self._obs = self.codec.encode_batch_chunk(chunk)  # step i -> dict of (N, ...) views
+        truth, epoch_at = chunk_truth_table(chunk, self.batch.members[0].earth)  # (c, 12) shared by the members
+        obs = self.codec.encode_batch_chunk(chunk)  # step i -> dict of (N, ...) views
         g = chunk.gnss
         n_valid_epoch = g.valid.sum(axis=2) if g is not None else np.zeros((n_env, 0), dtype=np.int64)
         outage, n_valid = held_flags(epoch_at, chunk.receiver_outage, n_valid_epoch, *self._held)
         self._held = (outage[:, -1].copy(), n_valid[:, -1].copy())
-        self._outage = _frozen(outage.T)  # (c, N)
-        self._n_valid = _frozen(n_valid.T)
+        return chunk, truth, obs, _frozen(outage.T), _frozen(n_valid.T)  # flags (c, N)
+
+    def _load_chunk(self) -> None:
+        if self._next is not None:  # generated ahead (threads >= 2)
+            future, self._next = self._next, None
+            made = future.result()
+        else:
+            made = self._make_chunk()
+        chunk, self._truth, self._obs, self._outage, self._n_valid = made
+        c = len(chunk)
+        if self.tapes is not None:
+            for j, tape in enumerate(self.tapes):
+                tape.add_chunk(chunk.member(j))
+            self._actions = np.empty((c, self.num_envs, 9))
         self._c = c
         self._i = 0
-        if self.tapes is not None:
-            self._actions = np.empty((c, n_env, 9))
 
     def _step_info(self, i: int) -> dict:
         info = {"receiver_outage": self._outage[i], "_receiver_outage": self._ones,
@@ -230,6 +263,10 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         a = check_action(actions, (n, 9), f"{n} x 9 real numbers (one solution per member, an array of shape "
                          f"({n}, 9))", name="actions")  # before any state changes; non-finite rows: -reward_cap
         i = self._i
+        if i == 0 and self._loader is not None and self._next is None and not self.batch.done:
+            # the first step of a chunk: the caller now holds this chunk's observations
+            # only, so the next chunk can take the output buffers of the previous one
+            self._next = self._loader.submit(self._make_chunk)
         row = self._truth[i]  # the truth is the same for every member
         sc = self.action_scale
         # the navigation error of navsim.naverror, the same operations as the single env
@@ -291,7 +328,20 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
                                       self.action_scale)
         return score_episode(record, track=self.sims[j].track)
 
+    def _drain(self) -> None:
+        """Wait for a chunk being generated ahead (a reset or close discards it)."""
+        if self._next is not None:
+            future, self._next = self._next, None
+            try:
+                future.result()
+            except Exception:  # noqa: BLE001  (its chunk is discarded, and so is its error)
+                pass
+
     def close_extras(self, **kwargs: Any) -> None:
+        self._drain()
+        if self._loader is not None:
+            self._loader.shutdown(wait=True)
+            self._loader = None
         self.batch.close()
         self.batch.members = []
         self.tapes = None
