@@ -137,6 +137,7 @@ def _version() -> str:
 
 
 # =========================================================================== store
+_copyto, _abs, _sqrt = np.copyto, np.abs, np.sqrt  # bound once: the estimator's per-step writes
 _DTYPES = {"real": np.float64, "int": np.int64, "bool": np.bool_}
 _CACHE_MAX = 64  # distinct value-reference lists kept resolved (a host asks the same few each step)
 
@@ -732,6 +733,9 @@ class EstimatorRuntime(_RuntimeBase):
         self._valid = store.slot("gnss.valid")[1]
         self._at = {name: store.slot(name)[1].start for name in ("time.step", "time.t_s", "gnss.new_epoch")}
         self._epoch_at = self._at["gnss.new_epoch"]
+        self._at_step, self._at_t = self._at["time.step"], self._at["time.t_s"]
+        self._reals, self._ints, self._bools = store.real, store.int, store.bool
+        self._fast: tuple[float, int, float, float] | None = None  # see do_step
         self._step_row: Any = None  # the estimator's row_stepping (set at the first plant data)
         self._meas_signals = [(s.measurement, store.slot(s.fmu_name)[1].start, s.dtype == "float64")
                               for s in MEASUREMENT_SIGNALS if s.present(self.dims)]
@@ -776,6 +780,7 @@ class EstimatorRuntime(_RuntimeBase):
         self.lagged = None  # None until the master's order is seen; then True (Jacobi) or False
         self.span = None  # navigation steps per communication step, fixed by the first that ends one
         self.started = False
+        self._fast = None
         self.initialised = True
         self.log(f"navsim {_version()} estimator {params['estimator.name']!r} on scenario "
                  f"{self.base_scenario.name!r} (config {self.base_scenario.config_hash()})")
@@ -862,7 +867,27 @@ class EstimatorRuntime(_RuntimeBase):
                            f"{k} x {self.timing.nav_period_s!r} s (the master's communication step): {exc}") from None
 
     def do_step(self, t: float, h: float) -> None:
-        """Advance one communication step (FmuError: refused, state unchanged)."""
+        """Advance one communication step (FmuError: refused, state unchanged).
+
+        Steady state (the master's order known, one navigation step per communication
+        step, ``h`` as at the last accepted step): the checks of :meth:`check_step` for
+        the one case that passes them (``c = p + 1`` and ``n0 + 1 = n1``, ``c`` as the
+        master's order gives, ``t`` the FMU's time, ``time.t_s`` the end of step ``c``)
+        are made on Python scalars read once; any other case takes :meth:`check_step`,
+        which accepts it or refuses it with its reason."""
+        fast = self._fast
+        if fast is not None and h == fast[0] and not self.terminated:
+            tick, n, nav_ticks = self.tick, fast[1], self.nav_ticks
+            n0, n1 = tick // nav_ticks, (tick + n) // nav_ticks
+            c = self._ints.item(self._at_step)
+            now = tick * fast[2]
+            t_c = c * fast[3]
+            if (n1 == n0 + 1 and c == self.processed + 1 and c == (n0 if self.lagged else n1)
+                    and tick + n <= self.end_tick and abs(t - now) <= REL_TOL * max(1.0, abs(now)) + 1e-12
+                    and abs(self._reals.item(self._at_t) - t_c) <= REL_TOL * max(1.0, t_c) + 1e-12):
+                self._process(c, 1, t_c, tick + n)
+                self.tick = tick + n
+                return
         n, c = self.check_step(t, h)
         if c is not None:
             k = self._span_next or 1
@@ -871,28 +896,36 @@ class EstimatorRuntime(_RuntimeBase):
                 self._step_row = row_stepping(self.estimator)
                 self._view = _StoreView(self, k)
                 self.started = True
-            step_row = self._step_row
-            try:
-                if step_row is None:
-                    est = self.estimator.step(self._measurement(c, k))
-                elif self.store.bool[self._epoch_at]:  # an epoch: a Measurement (the estimator may keep it)
-                    row, cov, nis, dof = step_row(self._measurement(c, k))
-                else:
-                    row, cov, nis, dof = step_row(self._view.fill(c, k))
-            except NavsimError as exc:  # e.g. a strapdown method that needs IMU sub-samples
-                raise FmuError(f"estimator {self.meta.get('estimator', '')!r} refused the data of plant step {c} "
-                               f"(navigation step {k} x {self.timing.nav_period_s!r} s): {exc}") from None
-            self.processed = c
-            if step_row is None:
-                self._write_estimate(est, c * self.timing.nav_period_s, self.tick + n)
-            else:
-                self._write_row(row, cov, nis, dof, c * self.timing.nav_period_s, self.tick + n)
+            self._process(c, k, c * self.timing.nav_period_s, self.tick + n)
         elif not self.started:
             self._write_estimate(self._prior(), 0.0, self.tick + n)
         else:
             self.store.write("nav.lag_steps", (self.tick + n) // self.nav_ticks - self.processed)
         self.lagged, self.span = self._lagged_next, self._span_next
         self.tick += n
+        # the steady state of the fast path above: (h, its ticks, tick, navigation step)
+        self._fast = ((h, n, self.timing.tick_s, self.timing.nav_period_s)
+                      if self.started and self.lagged is not None and self.span == 1 else None)
+
+    def _process(self, c: int, k: int, t_s: float, tick: int) -> None:
+        """Step the estimator with plant steps ``c - k .. c - 1`` and write its solution (at
+        time ``t_s``, FMU time ``tick``); FmuError (state unchanged) if the estimator refuses."""
+        step_row = self._step_row
+        try:
+            if step_row is None:
+                est = self.estimator.step(self._measurement(c, k))
+            elif self._bools.item(self._epoch_at):  # an epoch: a Measurement (the estimator may keep it)
+                row, cov, nis, dof = step_row(self._measurement(c, k))
+            else:
+                row, cov, nis, dof = step_row(self._view.fill(c, k))
+        except NavsimError as exc:  # e.g. a strapdown method that needs IMU sub-samples
+            raise FmuError(f"estimator {self.meta.get('estimator', '')!r} refused the data of plant step {c} "
+                           f"(navigation step {k} x {self.timing.nav_period_s!r} s): {exc}") from None
+        self.processed = c
+        if step_row is None:
+            self._write_estimate(est, t_s, tick)
+        else:
+            self._write_row(row, cov, nis, dof, t_s, tick)
 
     def _prior(self) -> Any:
         from navsim.types import Prior
@@ -934,21 +967,25 @@ class EstimatorRuntime(_RuntimeBase):
                    tick: int) -> None:
         """:meth:`_write_estimate` from a :data:`~navsim.estimators.base.StepRow`: ``row``
         (9,) is the solution block's [lat, lon, h, velocity_n (3), heading, pitch, roll]."""
-        real, o = self.store.real, self._sol_real
+        real, o = self._reals, self._sol_real
         real[o] = t_s
-        self._out_row[:] = row
+        _copyto(self._out_row, row)
         if cov is None:
             real[o + 10:o + 100] = math.nan
         else:  # standard deviations from the diagonal of the row-major 9 x 9
-            self._out_cov[...] = cov
+            _copyto(self._out_cov, cov)
             sigma = self._out_sigma
-            np.abs(self._out_diag, out=sigma)
-            np.sqrt(sigma, out=sigma)
-        real[o + 100] = math.nan if nis is None else nis
+            _abs(self._out_diag, sigma)
+            _sqrt(sigma, sigma)
         processed, ints = self.processed, self._out_int
         ints[0] = processed
         ints[1] = tick // self.nav_ticks - processed
-        ints[2] = int(dof or 0) if nis is not None else 0
+        if nis is None:
+            real[o + 100] = math.nan
+            ints[2] = 0
+        else:
+            real[o + 100] = nis
+            ints[2] = int(dof or 0)
 
     def _write_estimate(self, est: Any, t_s: float, tick: int) -> None:
         """Write the solution, its time, step and lag at FMU time ``tick`` straight into the
@@ -993,20 +1030,22 @@ class _StoreView:
         self._optional = tuple(rt._meas_signals)
         # [dtheta_r (R), dv_r (R), dtheta_sub (m), dv_sub (m)] rows; a composed interval (k > 1)
         # is one sample: its first-order increments
-        self._cuts = ((0, orders), (orders, 2 * orders),
-                      (2 * orders, 2 * orders + m) if k == 1 else (0, 1),
-                      (2 * orders + m, 2 * orders + 2 * m) if k == 1 else (orders, orders + 1))
+        self._cuts = (slice(0, orders), slice(orders, 2 * orders),
+                      slice(2 * orders, 2 * orders + m) if k == 1 else slice(0, 1),
+                      slice(2 * orders + m, 2 * orders + 2 * m) if k == 1 else slice(orders, orders + 1))
+        self._rows = self._real[self._imu].reshape(-1, 3)  # a view: the store is never reallocated
 
     def fill(self, c: int, k: int) -> _StoreView:
         """The fields of plant steps ``c - k .. c - 1`` (see the class docstring)."""
-        rows = self._real[self._imu].copy().reshape(-1, 3)
-        (a, b), (d, e), (f, g), (p, q) = self._cuts
+        rows = self._rows.copy()
+        a, b, d, e = self._cuts
         self.step = c // k - 1
         self.t = c * self._nav
-        self.dtheta_r, self.dv_r, self.dtheta_sub, self.dv_sub = rows[a:b], rows[d:e], rows[f:g], rows[p:q]
-        real, ints = self._real, self._int
-        for field, i, is_real in self._optional:
-            setattr(self, field, float(real[i]) if is_real else int(ints[i]))
+        self.dtheta_r, self.dv_r, self.dtheta_sub, self.dv_sub = rows[a], rows[b], rows[d], rows[e]
+        if self._optional:
+            real, ints = self._real, self._int
+            for field, i, is_real in self._optional:
+                setattr(self, field, real.item(i) if is_real else ints.item(i))
         return self
 
 
