@@ -44,11 +44,15 @@ Option checks shared by the estimators' option classes (one wording for every fi
 * :func:`check_positive_finite`: a real number ``0 < x < inf`` (periods, sigmas, factors);
 * :func:`check_optional_positive_finite`: the same, or None (a default taken from the context);
 * :func:`check_time_constant`: the correlation time ``tau`` of a first-order Gauss-Markov
-  process, ``0 < tau <= inf`` (``inf``: the random constant, ``phi = exp(-dt / tau) = 1``).
+  process, ``0 < tau <= inf`` (``inf``: the random constant, ``phi = exp(-dt / tau) = 1``);
+* :func:`check_integer`: a whole number ``>= minimum`` (counts: satellites, epochs);
+* :func:`check_probability`: a probability ``0 < p < 1``.
 
 A "real number" is an ``int`` or ``float`` (NumPy's float64 is a float; NumPy integers are
 accepted through :class:`numbers.Real`), never a ``bool`` nor a string; the value comes
-back as a ``float``. NaN fails every comparison and is refused.
+back as a ``float``. NaN fails every comparison and is refused. A "whole number" is an
+``int`` (or a NumPy integer) or a float with an integral value (``4.0``, as TOML and JSON
+option files may give it), never a ``bool``; it comes back as an ``int``.
 """
 
 from __future__ import annotations
@@ -65,7 +69,8 @@ if TYPE_CHECKING:  # type hints only
 
 __all__ = ["validate_scenario", "check_seed", "check_steps", "check_episode_memory", "machine_memory_bytes",
            "truth_block_bytes", "BYTES_PER_IMU_SAMPLE_NODE", "EPISODE_BYTES_PER_STEP", "check_choice",
-           "check_auto_none", "check_positive_finite", "check_optional_positive_finite", "check_time_constant"]
+           "check_auto_none", "check_positive_finite", "check_optional_positive_finite", "check_time_constant",
+           "check_integer", "check_probability"]
 
 BYTES_PER_IMU_SAMPLE_NODE = 400
 """Working memory of the truth generator per IMU sample and quadrature node, bytes (an
@@ -259,5 +264,30 @@ def check_time_constant(field: str, value: object,
     """
     number = _real(value)
     if number is None or not number > 0.0:
+        raise ConfigError(field, expected, value)
+    return number
+
+
+def check_integer(field: str, value: object, minimum: int, expected: str | None = None) -> int:
+    """``int(value)`` for a whole number ``>= minimum`` (module docstring), else
+    :class:`ConfigError` (``expected`` defaults to "an integer >= minimum").
+
+    >>> check_integer("min_satellites", 4.0, 4)
+    4
+    """
+    number = _real(value)
+    if number is None or not (math.isfinite(number) and number == int(number) and number >= minimum):
+        raise ConfigError(field, expected or f"an integer >= {minimum}", value)
+    return int(number)
+
+
+def check_probability(field: str, value: object, expected: str = "a probability in (0, 1)") -> float:
+    """``float(value)`` for a real number with ``0 < value < 1``, else :class:`ConfigError`.
+
+    >>> check_probability("divergence_probability", 1e-6)
+    1e-06
+    """
+    number = _real(value)
+    if number is None or not (0.0 < number < 1.0):
         raise ConfigError(field, expected, value)
     return number

@@ -13,8 +13,10 @@ from navsim.errors import ConfigError
 from navsim.validation import (
     check_auto_none,
     check_choice,
+    check_integer,
     check_optional_positive_finite,
     check_positive_finite,
+    check_probability,
     check_time_constant,
 )
 
@@ -50,3 +52,40 @@ def test_time_constant_takes_inf_as_the_random_constant():
     for bad in (0.0, -5.0, -math.inf, math.nan, True, "60", None):
         with pytest.raises(ConfigError, match=r"tau: expected a positive time constant, s \(inf: a random constant\)"):
             check_time_constant("tau", bad)
+
+
+# The filters' option checks are these functions: a bool, NaN or a string never passes as a number,
+# a time constant, a count or a probability (True == 1 in Python, so a bare isinstance(x, (int,
+# float)) test would take it), and the message names the option.
+BAD_OPTIONS = [
+    ("lc-ekf", "baro_period_s", True), ("lc-ekf", "divergence_epochs", True), ("lc-ekf", "min_satellites", 4.5),
+    ("lc-ekf", "divergence_probability", math.nan), ("lc-ekf", "fix_error_tau_s", (True, 60.0)),
+    ("lc-ekf", "fix_error_tau_s", 60.0), ("lc-ekf", "covariance_period_s", math.inf), ("lc-ekf", "odometer", "yes"),
+    ("tc-ekf", "ionosphere_tau_s", True), ("tc-ekf", "troposphere_tau_s", "3600"), ("tc-ekf", "divergence_epochs", 0),
+    ("tc-ukf", "baro_period_s", math.nan), ("tc-ukf", "pseudorange_sigma_m", -1.0), ("tc-ukf", "clock", None),
+]
+
+
+@pytest.mark.parametrize(("name", "option", "value"), BAD_OPTIONS)
+def test_filters_refuse_bad_options_through_the_shared_checks(name, option, value):
+    from navsim import estimators
+
+    with pytest.raises(ConfigError, match=rf"{option}: expected"):
+        estimators.make(name, **{option: value})
+
+
+def test_filters_keep_whole_numbers_and_infinite_time_constants():
+    from navsim import estimators
+
+    est = estimators.make("tc-ekf", divergence_epochs=10.0, ionosphere_tau_s=math.inf)
+    assert type(est.options.divergence_epochs) is int and est.options.divergence_epochs == 10
+    lc = estimators.make("lc-ekf", fix_error_tau_s=(math.inf, 7200), min_satellites=5.0)
+    assert lc.fix_error_tau_s == (math.inf, 7200.0) and lc.min_satellites == 5
+    assert check_integer("n", np.int64(7), 1) == 7
+    for bad in (True, 0, 2.5, math.inf, math.nan, "3"):
+        with pytest.raises(ConfigError, match="n: expected an integer >= 1"):
+            check_integer("n", bad, 1)
+    assert check_probability("p", 0.5) == 0.5
+    for bad in (0.0, 1.0, math.nan, True, "0.5"):
+        with pytest.raises(ConfigError, match=r"p: expected a probability in \(0, 1\)"):
+            check_probability("p", bad)

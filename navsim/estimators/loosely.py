@@ -139,6 +139,15 @@ from ..earth import mat_en
 from ..errors import ConfigError
 from ..receiver import least_squares_fix, velocity_fix
 from ..rotations import mat_nb_from_hpr, quat_to_mat
+from ..validation import (
+    check_auto_none,
+    check_choice,
+    check_integer,
+    check_optional_positive_finite,
+    check_positive_finite,
+    check_probability,
+    check_time_constant,
+)
 from ._inserror import (
     N_STATES,
     NAV,
@@ -321,43 +330,31 @@ class LooselyCoupledEkf(NoiseScalable):
                  fix_error_tau_s: tuple[float, float] = (1200.0, 7200.0), baro: str = "auto",
                  baro_period_s: float = 1.0, gyro_scale_sigma: float = 0.0, accel_scale_sigma: float = 0.0,
                  scale_tau_s: float = 5.0) -> None:
-        if baro not in ("auto", "none"):
-            raise ConfigError("baro", "'auto' or 'none'", baro)
-        if isinstance(baro_period_s, bool) or not (isinstance(baro_period_s, (int, float)) and baro_period_s > 0.0
-                                                   and math.isfinite(baro_period_s)):
-            raise ConfigError("baro_period_s", "a positive finite number", baro_period_s)
-        self.baro = baro
-        self.baro_period_s = float(baro_period_s)
+        self.baro = check_auto_none("baro", baro)
+        self.baro_period_s = check_positive_finite("baro_period_s", baro_period_s)
         self._scale = dict(gyro_scale_sigma=float(gyro_scale_sigma), accel_scale_sigma=float(accel_scale_sigma),
                            scale_tau_s=float(scale_tau_s))
         ImuNoise(**self._scale)  # checks them
-        if fix_error not in ("auto", "white"):
-            raise ConfigError("fix_error", "'auto' or 'white'", fix_error)
-        tau = tuple(fix_error_tau_s)
-        if len(tau) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0.0
-                                    for x in tau):
-            raise ConfigError("fix_error_tau_s", "two positive correlation times, s (horizontal, vertical)",
-                              fix_error_tau_s)
-        self.fix_error = fix_error
-        self.fix_error_tau_s = (float(tau[0]), float(tau[1]))
-        if int(min_satellites) != min_satellites or min_satellites < 4:
-            raise ConfigError("min_satellites", "an integer >= 4", min_satellites)
-        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
-            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
-        if covariance_period_s is not None and not (covariance_period_s > 0.0 and math.isfinite(covariance_period_s)):
-            raise ConfigError("covariance_period_s", "a positive finite time, s, or None", covariance_period_s)
-        if not 0.0 < divergence_probability < 1.0:
-            raise ConfigError("divergence_probability", "a probability in (0, 1)", divergence_probability)
-        if int(divergence_epochs) != divergence_epochs or divergence_epochs < 1:
-            raise ConfigError("divergence_epochs", "a positive integer", divergence_epochs)
-        if lever_arm not in ("auto", "none"):
-            raise ConfigError("lever_arm", "'auto' or 'none'", lever_arm)
-        self.lever_arm = lever_arm
-        if odometer not in ("auto", "none"):
-            raise ConfigError("odometer", "'auto' or 'none'", odometer)
-        for name, value in (("odometer_period_s", odometer_period_s), ("nhc_sigma_mps", nhc_sigma_mps)):
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
-                raise ConfigError(name, "a positive finite number", value)
+        self.fix_error = check_choice("fix_error", fix_error, ("auto", "white"))
+        expected = "two positive correlation times, s (horizontal, vertical)"
+        try:
+            tau = tuple(fix_error_tau_s)
+        except TypeError:
+            raise ConfigError("fix_error_tau_s", expected, fix_error_tau_s) from None
+        if len(tau) != 2:
+            raise ConfigError("fix_error_tau_s", expected, fix_error_tau_s)
+        self.fix_error_tau_s = (check_time_constant("fix_error_tau_s", tau[0], expected),
+                                check_time_constant("fix_error_tau_s", tau[1], expected))
+        check_integer("min_satellites", min_satellites, 4)
+        check_positive_finite("measurement_scale", measurement_scale, "a positive finite factor")
+        check_optional_positive_finite("covariance_period_s", covariance_period_s,
+                                       "a positive finite time, s, or None")
+        check_probability("divergence_probability", divergence_probability)
+        check_integer("divergence_epochs", divergence_epochs, 1, "a positive integer")
+        self.lever_arm = check_auto_none("lever_arm", lever_arm)
+        check_auto_none("odometer", odometer)
+        check_positive_finite("odometer_period_s", odometer_period_s)
+        check_positive_finite("nhc_sigma_mps", nhc_sigma_mps)
         self.odometer = odometer
         self.odometer_period_s = float(odometer_period_s)
         self.nhc = bool(nhc)

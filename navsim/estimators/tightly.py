@@ -175,6 +175,13 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..rotations import quat_to_mat
+from ..validation import (
+    check_auto_none,
+    check_integer,
+    check_optional_positive_finite,
+    check_positive_finite,
+    check_time_constant,
+)
 from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
 from .base import (
     Context,
@@ -745,32 +752,20 @@ class TightlyCoupledOptions:
     def __post_init__(self):
         ImuNoise(gyro_scale_sigma=self.gyro_scale_sigma, accel_scale_sigma=self.accel_scale_sigma,
                  scale_tau_s=self.scale_tau_s)  # checks them
-        if self.baro not in ("auto", "none"):
-            raise ConfigError("tightly.baro", "'auto' or 'none'", self.baro)
-        if isinstance(self.baro_period_s, bool) or not (isinstance(self.baro_period_s, (int, float))
-                                                        and self.baro_period_s > 0.0
-                                                        and math.isfinite(self.baro_period_s)):
-            raise ConfigError("tightly.baro_period_s", "a positive finite number, s", self.baro_period_s)
-        if self.lever_arm not in ("auto", "none"):
-            raise ConfigError("tightly.lever_arm", "'auto' or 'none'", self.lever_arm)
-        if self.atmosphere not in ("auto", "none"):
-            raise ConfigError("tightly.atmosphere", "'auto' or 'none'", self.atmosphere)
+        check_auto_none("tightly.baro", self.baro)
+        check_positive_finite("tightly.baro_period_s", self.baro_period_s, "a positive finite number, s")
+        check_auto_none("tightly.lever_arm", self.lever_arm)
+        check_auto_none("tightly.atmosphere", self.atmosphere)
         for name in ("ionosphere_tau_s", "troposphere_tau_s"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and value > 0.0):
-                raise ConfigError(f"tightly.{name}", "a positive time constant, s (math.inf: random constant)", value)
+            check_time_constant(f"tightly.{name}", getattr(self, name))
         for name in ("pseudorange_sigma_m", "doppler_sigma_mps"):
-            value = getattr(self, name)
-            if value is not None and not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
-                raise ConfigError(f"tightly.{name}", "None or a positive finite sigma", value)
-        if self.clock not in ("auto", "none"):
-            raise ConfigError("tightly.clock", "'auto' or 'none'", self.clock)
+            check_optional_positive_finite(f"tightly.{name}", getattr(self, name), "None or a positive finite sigma")
+        check_auto_none("tightly.clock", self.clock)
         for name in ("covariance_period_s", "noise_scale", "bias_scale", "nis_divergence", "alpha"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
-                raise ConfigError(f"tightly.{name}", "a positive finite number", value)
-        if not (isinstance(self.divergence_epochs, int) and self.divergence_epochs >= 1):
-            raise ConfigError("tightly.divergence_epochs", "a positive integer", self.divergence_epochs)
+            check_positive_finite(f"tightly.{name}", getattr(self, name))
+        # a whole float (10.0, from an option file) is kept as the int it stands for
+        object.__setattr__(self, "divergence_epochs",
+                           check_integer("tightly.divergence_epochs", self.divergence_epochs, 1, "a positive integer"))
 
 
 # ============================================================================ filters
