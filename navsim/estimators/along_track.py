@@ -161,7 +161,9 @@ Output
 Position, tangent, heading, grade and cant come from the track at ``s``; velocity is
 ``v t_n(s)``. The 9 x 9 covariance maps the filter's through the track geometry:
 ``dp = t_n ds``, ``dv_n = t_n dv + v (dt_n/ds) ds``, ``psi = w_n ds`` with ``w_n`` the
-rotation of the track frame (heading, grade, cant) per metre of track in ENU axes. The
+rotation of the track frame (heading, grade, cant) per metre of track in ENU axes, i.e.
+``J P J^T`` with a Jacobian ``J`` whose only nonzero columns are those of s and v (computed
+from those two columns alone, the same operations in batch and step by step). The
 cross-track position and velocity errors and the attitude errors other than through
 ``ds`` are zero for a vehicle on its track (the map is taken as exact), so the reported
 covariance has rank 2 (arc length and speed): it claims a 2-dimensional error subspace,
@@ -662,6 +664,7 @@ class AlongTrackFilter(NoiseScalable):
         self._bad_epochs = 0
         self.n_updates = 0
         self._last_extra: dict | None = {}
+        self._row_args = None  # _output_row's kernel and arguments, made on first use
 
     def _start_interval(self) -> None:
         """Freeze F at the start of a covariance propagation interval."""
@@ -894,7 +897,7 @@ class AlongTrackFilter(NoiseScalable):
         J[:, 3:6, 0] = v[:, None] * dt_n  # dv_n = t_n dv + v dt_n/ds ds
         J[:, 3:6, 1] = t_n
         J[:, 6:9, 0] = w_n  # psi = w_n ds
-        cov = J @ P @ np.swapaxes(J, -1, -2)
+        cov = _cov_two_columns(J[:, :, 0], J[:, :, 1], P)  # J P J^T: J has only the columns s, v
         att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
         floor = np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3)
         cov = cov + np.diag(floor)
@@ -915,22 +918,23 @@ class AlongTrackFilter(NoiseScalable):
 
     def _output_row(self, s: float, v: float, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_output_one` without the leading step axis: row (9,), covariance (9, 9)."""
-        kern = _map_row_kernel()
-        if kern is None:
-            sol, cov = self._output_one(s, v, P)
-            return sol[0], cov[0]
-        table = self.table
-        sol = np.empty(9)
-        J = np.zeros((9, self.n_x))
-        kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol[None], J)
-        floor = self.__dict__.get("_floor_row")
-        if floor is None:  # the floors, with NaN on the attitude rows and columns when unestimated
+        row = self.__dict__.get("_row_args")
+        if row is None:  # (compiled kernel or None, its table arguments, the floors), once per reset
+            table = self.table
             floor = self._output_floor().copy()
             if self.options.attitude_floor_rad is None:  # NaN + x is NaN: _output_one's NaN entries
                 floor[6:9, :] = np.nan
                 floor[:, 6:9] = np.nan
-            self._floor_row = floor
-        return sol, J @ P @ J.T + floor
+            prm = np.array([table.length, table._inv, table._n, table.step])
+            row = self._row_args = (_output_row_kernel(), table.values, table.derivs, table.w_n, prm, floor)
+        kern, values, derivs, w_n, prm, floor = row
+        if kern is None:
+            sol, cov = self._output_one(s, v, P)
+            return sol[0], cov[0]
+        sol = np.empty(9)
+        cov = np.empty((9, 9))
+        kern(values, derivs, w_n, prm, s, v, P, floor, sol, cov)
+        return sol, cov
 
     def _output_floor(self) -> np.ndarray:
         """The floors of :meth:`_outputs` (9, 9), fixed by the options."""
@@ -942,7 +946,7 @@ class AlongTrackFilter(NoiseScalable):
     def _output_one(self, s: float, v: float, P: np.ndarray):
         """:meth:`_outputs` of one state on Python floats (the same operations); the map
         interpolation and the Jacobian J in one compiled call when numba is installed
-        (:func:`_map_row`, the same operations again), the covariance product by NumPy."""
+        (:func:`_map_row`, the same operations again), the covariance by :func:`_cov_two_columns`."""
         table, opt = self.table, self.options
         kern = _map_row_kernel()
         if kern is not None:
@@ -952,7 +956,7 @@ class AlongTrackFilter(NoiseScalable):
             floor = self.__dict__.get("_floor")
             if floor is None:  # the floors of _outputs, fixed by the options
                 floor = self._output_floor()
-            cov = (J @ P @ J.T + floor)[None]
+            cov = (_cov_two_columns(J[:, 0], J[:, 1], P) + floor)[None]
             if opt.attitude_floor_rad is None:
                 cov[:, 6:9, :] = np.nan
                 cov[:, :, 6:9] = np.nan
@@ -983,7 +987,7 @@ class AlongTrackFilter(NoiseScalable):
         if floor is None:  # the floors of _outputs, fixed by the options
             att_floor = 0.0 if opt.attitude_floor_rad is None else opt.attitude_floor_rad**2
             floor = self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3))
-        cov = (J @ P @ J.T + floor)[None]  # the (9, n) (n, n) (n, 9) products of each row of _outputs
+        cov = (_cov_two_columns(J[:, 0], J[:, 1], P) + floor)[None]  # the operations of each row of _outputs
         if opt.attitude_floor_rad is None:
             cov[:, 6:9, :] = np.nan
             cov[:, :, 6:9] = np.nan
@@ -1181,7 +1185,35 @@ def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
         J[6 + j, 0] = (1 - u) * w_n[i, j] + u * w_n[i + 1, j]
 
 
+def _cov_two_columns(j0, j1, P):
+    """``J P J^T`` for a Jacobian J (..., 9, n) whose only nonzero columns are 0 and 1 (s and
+    v), given as ``j0``, ``j1`` (..., 9), and P (..., n, n): ``(J P)[:, b] = j0 P[0, b] + j1 P[1, b]``,
+    then ``cov[r, q] = (J P)[r, 0] j0[q] + (J P)[r, 1] j1[q]`` (the zero columns left out; the
+    same operations, in the same order, as :func:`_output_row`'s loops)."""
+    a0 = j0 * P[..., 0, 0, None] + j1 * P[..., 1, 0, None]
+    a1 = j0 * P[..., 0, 1, None] + j1 * P[..., 1, 1, None]
+    return a0[..., :, None] * j0[..., None, :] + a1[..., :, None] * j1[..., None, :]
+
+
+def _output_row(values, derivs, w_n, prm, s, v, P, floor, sol, cov):
+    """One output row of :class:`AlongTrackFilter` (compiled, :func:`_output_row_kernel`): the
+    solution (9,) by :func:`_map_row` and the covariance ``J P J^T + floor`` (9, 9) by the
+    operations of :func:`_cov_two_columns`. ``prm`` = (table length, 1 / step, nodes, step)."""
+    J = np.zeros((9, 2))
+    _map_row(values, derivs, w_n, prm[0], prm[1], int(prm[2]), prm[3], s, v, sol.reshape((1, 9)), J)
+    p00, p01, p10, p11 = P[0, 0], P[0, 1], P[1, 0], P[1, 1]
+    a0 = np.empty(9)
+    a1 = np.empty(9)
+    for r in range(9):
+        a0[r] = J[r, 0] * p00 + J[r, 1] * p10
+        a1[r] = J[r, 0] * p01 + J[r, 1] * p11
+    for r in range(9):
+        for q in range(9):
+            cov[r, q] = (a0[r] * J[q, 0] + a1[r] * J[q, 1]) + floor[r, q]
+
+
 _MAP_ROW: list = []
+_OUTPUT_ROW: list = []
 
 
 def _map_row_kernel():
@@ -1196,3 +1228,17 @@ def _map_row_kernel():
         else:
             _MAP_ROW.append(None)
     return _MAP_ROW[0]
+
+
+def _output_row_kernel():
+    """:func:`_output_row` compiled by numba (cached on disk), or None without numba."""
+    if not _OUTPUT_ROW:
+        kern = _map_row_kernel()
+        if kern is None:
+            _OUTPUT_ROW.append(None)
+        else:
+            import numba
+
+            globals()["_map_row"] = kern  # _output_row calls the compiled _map_row
+            _OUTPUT_ROW.append(numba.njit(cache=True, nogil=True)(_output_row))
+    return _OUTPUT_ROW[0]
