@@ -37,8 +37,8 @@ Threads
     ``threads=2`` or more: the next chunk is generated on a thread of its own while the
     steps of the current chunk are served (the chunks do not depend on the actions:
     scripted motion), its IMU pass split over ``threads`` worker threads of the
-    :class:`~navsim.simulator.SimulatorBatch`, each a run of member groups (their draws
-    and their arithmetic), while the chunk thread generates the GNSS, outage, odometer
+    :class:`~navsim.simulator.SimulatorBatch`, each taking the next group of members
+    (their draws and their arithmetic) from a shared queue, while the chunk thread generates the GNSS, outage, odometer
     and barometer data. The calling thread then only steps (reward, observation views,
     info), the chunk-invariant generation never waits for a step and a step waits for a
     chunk only at its boundary: the part of the work that is not split (the steps)

@@ -537,9 +537,11 @@ def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, ex
     of about :data:`IMU_TILE` member-samples per call; the error model is chunk-invariant
     (one draw block per call, the recursive state carried), so the tiling changes no
     number. With an executor the groups run on threads (NumPy's generators and ufunc
-    loops release the GIL, and so do the compiled draws and white-noise pass): the groups
-    are split into one contiguous run per thread and the result is a :class:`_Pending`,
-    so that the caller's thread generates the other sensors meanwhile. ``pool``: output
+    loops release the GIL, and so do the compiled draws and white-noise pass): each group
+    is a task of the executor's queue, taken by the first free worker (the members of a
+    group have their own streams and states, so the order changes no number), and the
+    result is a :class:`_Pending`, so that the caller's thread generates the other
+    sensors meanwhile. ``pool``: output
     buffers to reuse (:func:`_output_buffers`).
     """
     members, ns = len(sims), len(t_start)
@@ -566,11 +568,9 @@ def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, ex
 
     starts = range(0, members, group)
     if executor is not None and len(starts) > 1:
-        # one task per thread, each a contiguous run of groups (its members' streams)
-        workers = min(executor._max_workers, len(starts))
-        parts = [list(starts)[i::workers] for i in range(workers)]
-        futures = [executor.submit(lambda part=part: [run(g0) for g0 in part]) for part in parts]
-        return _Pending(out, futures)
+        # one task per group, taken by whichever worker is free (a worker delayed by
+        # other work on its core does not hold up the chunk; the groups are independent)
+        return _Pending(out, [executor.submit(run, g0) for g0 in starts])
     for g0 in starts:
         run(g0)
     return out
@@ -745,9 +745,9 @@ class SimulatorBatch:
     size : int
         Number of members B.
     threads : int
-        Worker threads for the IMU error pass (default 1: none), each taking a contiguous
-        run of members while the calling thread generates the GNSS, outage, odometer and
-        barometer data. Each member's numbers are the same whatever the number of threads.
+        Worker threads for the IMU error pass (default 1: none), each taking the next
+        group of members while the calling thread generates the GNSS, outage, odometer
+        and barometer data. Each member's numbers are the same whatever the number of threads.
 
     The chunks' IMU output arrays come from a pool of :data:`OUTPUT_POOL` sets, reused
     once nothing references a set any more (a kept chunk or observation keeps its set

@@ -104,3 +104,25 @@ def test_chunks_generated_ahead_reuse_the_output_buffers():
                 seen.append(weakref.ref(bufs[0]))
     assert len(venv.batch._pool) == 2 and len(seen) == 2
     venv.close()
+
+
+def test_first_use_in_a_fresh_process_with_threads():
+    """The compiled kernels are made once even when the first chunk of a process is
+    generated with threads (the IMU workers and the chunk thread reach
+    ``navsim.sensors.imu.kernel`` at once: it used to hand one of them a half-filled table,
+    a KeyError)."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\n"
+            "from navsim.envs.vector import NavigationVectorEnv\n"
+            f"env = NavigationVectorEnv({2 * IMU_GROUP}, 'paper-2012', threads=2, score=False, chunk_steps=50,\n"
+            "                          timing={'duration_s': 2.0})\n"
+            "env.reset(seed=0)\n"
+            "for _ in range(120):\n"
+            f"    env.step(np.zeros(({2 * IMU_GROUP}, 9)))\n"
+            "env.close()\n"
+            "print('ok')\n")
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

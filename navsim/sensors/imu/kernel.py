@@ -33,6 +33,7 @@ extra ``fast``; compiled on the first call and cached on disk) or None without n
 
 from __future__ import annotations
 
+import threading
 from typing import Any, Callable
 
 import numpy as np
@@ -108,30 +109,39 @@ def normals_into(rng: np.random.Generator, out: np.ndarray) -> None:
 
 
 _compiled: dict[str, Callable[..., Any]] = {}
+_compile_lock = threading.Lock()
 
 
 def _compile() -> bool:
     if not available():
         return False
-    if not _compiled:
-        import numba
-
-        global _white_noise_r4
-        _white_noise_r4 = numba.njit(cache=True, nogil=True)(_white_noise_r4)
-        _compiled["white_noise_into"] = numba.njit(cache=True, nogil=True)(white_noise_into)
-        from . import _bitgen
-
-        def draw_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
-            """``rngs[b].standard_normal(out=out[b])`` for every b, in one compiled call."""
-            _bitgen.normals_into_many(*_bitgen.addresses(rngs), out)
-
-        def uniform_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
-            """``rngs[b].random(out=out[b])`` for every b, in one compiled call."""
-            _bitgen.uniforms_into_many(*_bitgen.addresses(rngs), out)
-
-        _compiled["draw_many"] = draw_many
-        _compiled["uniform_many"] = uniform_many
+    if "uniform_many" in _compiled:  # the last entry made: all are there
+        return True
+    with _compile_lock:  # worker threads may reach this at once (SimulatorBatch threads)
+        if "uniform_many" not in _compiled:
+            _make()
     return True
+
+
+def _make() -> None:
+    """Fill :data:`_compiled` (under ``_compile_lock``)."""
+    import numba
+
+    global _white_noise_r4
+    _white_noise_r4 = numba.njit(cache=True, nogil=True)(_white_noise_r4)
+    _compiled["white_noise_into"] = numba.njit(cache=True, nogil=True)(white_noise_into)
+    from . import _bitgen
+
+    def draw_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
+        """``rngs[b].standard_normal(out=out[b])`` for every b, in one compiled call."""
+        _bitgen.normals_into_many(*_bitgen.addresses(rngs), out)
+
+    def uniform_many(rngs: list[np.random.Generator], out: np.ndarray) -> None:
+        """``rngs[b].random(out=out[b])`` for every b, in one compiled call."""
+        _bitgen.uniforms_into_many(*_bitgen.addresses(rngs), out)
+
+    _compiled["draw_many"] = draw_many
+    _compiled["uniform_many"] = uniform_many
 
 
 def draws(kind: str = "normal") -> Callable[..., None] | None:
