@@ -664,7 +664,7 @@ class AlongTrackFilter(NoiseScalable):
         self._bad_epochs = 0
         self.n_updates = 0
         self._last_extra: dict | None = {}
-        self._row_args = None  # _output_row's kernel and arguments, made on first use
+        self._row_args: tuple | None = None  # the step path's kernels and arguments (_row_setup), made on first use
 
     def _start_interval(self) -> None:
         """Freeze F at the start of a covariance propagation interval."""
@@ -918,16 +918,7 @@ class AlongTrackFilter(NoiseScalable):
 
     def _output_row(self, s: float, v: float, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_output_one` without the leading step axis: row (9,), covariance (9, 9)."""
-        row = self.__dict__.get("_row_args")
-        if row is None:  # (compiled kernel or None, its table arguments, the floors), once per reset
-            table = self.table
-            floor = self._output_floor().copy()
-            if self.options.attitude_floor_rad is None:  # NaN + x is NaN: _output_one's NaN entries
-                floor[6:9, :] = np.nan
-                floor[:, 6:9] = np.nan
-            prm = np.array([table.length, table._inv, table._n, table.step])
-            row = self._row_args = (_output_row_kernel(), table.values, table.derivs, table.w_n, prm, floor)
-        kern, values, derivs, w_n, prm, floor = row
+        kern, values, derivs, w_n, prm, floor = (self._row_args or self._row_setup())[:6]
         if kern is None:
             sol, cov = self._output_one(s, v, P)
             return sol[0], cov[0]
@@ -935,6 +926,24 @@ class AlongTrackFilter(NoiseScalable):
         cov = np.empty((9, 9))
         kern(values, derivs, w_n, prm, s, v, P, floor, sol, cov)
         return sol, cov
+
+    def _row_setup(self) -> tuple:
+        """The step path's compiled kernels and their fixed arguments (once per reset):
+        (_output_row kernel or None, table values, derivs, w_n, its parameters, the floors
+        with NaN attitude rows and columns when unestimated, _step_row kernel or None, the
+        table's g_t and d g_t/ds step arrays, _step_row's parameters)."""
+        table = self.table
+        floor = self._output_floor().copy()
+        if self.options.attitude_floor_rad is None:  # NaN + x is NaN: _output_one's NaN entries
+            floor[6:9, :] = np.nan
+            floor[:, 6:9] = np.nan
+        prm = np.array([table.length, table._inv, table._n, table.step])
+        step_prm = np.array([table.length, table._inv, table._n, table.step, self.dt, self.decay,
+                             1.0 if self.clock_states else 0.0])
+        fused = None if self.use_odometer else _step_row_kernel()  # the odometer's steps: the general path
+        row = self._row_args = (_output_row_kernel(), table.values, table.derivs, table.w_n, prm, floor, fused,
+                                np.array(table._g), np.array(table._dg), step_prm)
+        return row
 
     def _output_floor(self) -> np.ndarray:
         """The floors of :meth:`_outputs` (9, 9), fixed by the options."""
@@ -1032,6 +1041,20 @@ class AlongTrackFilter(NoiseScalable):
 
     def _step_one(self, measurement: Measurement) -> tuple[np.ndarray, np.ndarray, float | None, int]:
         """One navigation step: (solution row (9,), covariance (9, 9), nis, dof)."""
+        step = measurement.step
+        if measurement.gnss is None and (step + 1) % self.cov_steps:  # no covariance boundary
+            _, values, derivs, w_n, _, floor, fused, g, dg, prm = self._row_args or self._row_setup()
+            if fused is not None:  # mean (AT.3)-(AT.7) and output row in one compiled call
+                k = self.k_in + 1
+                P = self._interval_covariance(k, step)  # depends on k only, not on the mean
+                sol = np.empty(9)
+                cov = np.empty((9, 9))
+                if fused(values, derivs, w_n, g, dg, prm, self.x, np.asarray(measurement.dv_r, dtype=float), P, floor,
+                         sol, cov) == 0:
+                    self.k_in = k
+                    self.t = measurement.t
+                    self._last_extra = None
+                    return sol, cov, None, 0
         dv = np.asarray(measurement.dv_r, dtype=float).tolist()  # body-y increments, floats (_along_increments)
         dv_y = dv[0][1]
         ds2_y = dv[1][1] if len(dv) >= 2 else 0.5 * self.dt * dv_y
@@ -1160,7 +1183,7 @@ def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
     (1, 9) and the nonzero columns 0, 1 of ``J`` (9, n_x). The same operations in the same
     order as the float form there (compiled by numba: :func:`_map_row_kernel`)."""
     x = min(max(s, 0.0), length) * inv
-    i = min(int(x), n - 2)
+    i = min(int(x), n - 2) if x == x else 0  # NaN s: node 0 (u is NaN, so is every output), no read off the table
     u = x - i
     uu = u * u
     w2 = (1 - u) * (1 - u)
@@ -1212,8 +1235,40 @@ def _output_row(values, derivs, w_n, prm, s, v, P, floor, sol, cov):
             cov[r, q] = (a0[r] * J[q, 0] + a1[r] * J[q, 1]) + floor[r, q]
 
 
+def _step_row(values, derivs, w_n, g, dg, prm, x, dv_r, P, floor, sol, cov):
+    """One step of :class:`AlongTrackFilter` between covariance boundaries (compiled,
+    :func:`_step_row_kernel`): the mean (AT.3)-(AT.7) of ``_propagate_mean`` with
+    ``TrackTable.gravity_along`` (the same float operations in the same order, ``x`` in
+    place), then :func:`_output_row` at the new (s, v) with the interval's P. ``prm`` =
+    (table length, 1 / step, nodes, step, dt, Gauss-Markov decay, clock states 0/1).
+    Returns 1, x unchanged, when the mid-step arc length is not finite (the Python path then
+    runs and raises as before), else 0."""
+    length, inv, n, dt = prm[0], prm[1], int(prm[2]), prm[4]
+    dv_y = dv_r[0, 1]
+    ds2_y = dv_r[1, 1] if dv_r.shape[0] >= 2 else 0.5 * dt * dv_y
+    s, v, b = x[0], x[1], x[2]
+    sm = s + 0.5 * dt * v
+    if not math.isfinite(sm):
+        return 1
+    xs = min(max(sm, 0.0), length) * inv  # gravity_along(sm)
+    i = min(int(xs), n - 2)
+    u = xs - i
+    w = 1.0 - u
+    grav = ((1 + 2 * u) * w * w * g[i] + u * w * w * dg[i]
+            + u * u * (3 - 2 * u) * g[i + 1] + u * u * (u - 1) * dg[i + 1])
+    a = grav - b  # (AT.5) mid-step grade
+    x[1] = v + dv_y + a * dt  # (AT.6)
+    x[0] = s + v * dt + ds2_y + 0.5 * dt * dt * a  # (AT.7)
+    x[2] = b * prm[5]  # (AT.3) Gauss-Markov mean
+    if prm[6] != 0.0:
+        x[3] = x[3] + x[4] * dt  # (AT.4)
+    _output_row(values, derivs, w_n, prm, x[0], x[1], P, floor, sol, cov)
+    return 0
+
+
 _MAP_ROW: list = []
 _OUTPUT_ROW: list = []
+_STEP_ROW: list = []
 
 
 def _map_row_kernel():
@@ -1242,3 +1297,17 @@ def _output_row_kernel():
             globals()["_map_row"] = kern  # _output_row calls the compiled _map_row
             _OUTPUT_ROW.append(numba.njit(cache=True, nogil=True)(_output_row))
     return _OUTPUT_ROW[0]
+
+
+def _step_row_kernel():
+    """:func:`_step_row` compiled by numba (cached on disk), or None without numba."""
+    if not _STEP_ROW:
+        kern = _output_row_kernel()
+        if kern is None:
+            _STEP_ROW.append(None)
+        else:
+            import numba
+
+            globals()["_output_row"] = kern  # _step_row calls the compiled _output_row
+            _STEP_ROW.append(numba.njit(cache=True, nogil=True)(_step_row))
+    return _STEP_ROW[0]

@@ -515,3 +515,28 @@ def test_urban_road_consistent_with_scale_factor_and_atmosphere_20_seeds():
         means.append(np.nanmean(values))
     lo, hi = chi2.ppf(0.025, 2 * n) / n, chi2.ppf(0.975, 2 * n) / n
     assert lo < np.mean(means) < hi
+
+
+@pytest.mark.parametrize("scenario,options", [("paper-2012", {}), ("paper-2012", {"clock": "estimate"}),
+                                              ("urban-road", {"update": "fix"}), ("mountain-railway", {})])
+def test_step_row_equals_step_batch_bit_for_bit(scenario, options):
+    """The step path (between covariance boundaries the compiled _step_row: the mean of
+    _propagate_mean and gravity_along, then _output_row; the general path at boundaries)
+    runs step_batch's operations in the same order: solutions, covariances, NIS and the
+    final state equal bit for bit."""
+    sc = load_scenario(scenario).with_overrides({"timing": {"duration_s": 6.0}})
+    sim = Simulator(sc)
+    start = sim.reset(2)
+    ctx = make_context(sim)
+    batch = measurement_batch(sim.advance(round(6.0 / ctx.nav_period_s)), np.asarray(sim.constellation.prn),
+                              ctx.nav_period_s)
+    a, b = make("along-track", **options), make("along-track", **options)
+    a.reset(ctx, start.prior)
+    b.reset(ctx, start.prior)
+    ref = a.step_batch(batch)
+    rows = [b.step_row(batch.measurement(i)) for i in range(len(batch))]
+    np.testing.assert_array_equal(np.array([r[0] for r in rows]), ref.solution)
+    np.testing.assert_array_equal(np.array([r[1] for r in rows]), ref.covariance)
+    np.testing.assert_array_equal([np.nan if r[2] is None else r[2] for r in rows], ref.nis)
+    np.testing.assert_array_equal(b.x, a.x)
+    assert np.isfinite(ref.nis).sum() >= 5  # the epochs' updates ran
