@@ -19,6 +19,9 @@ For the bundled ``paper-2012`` scenario (0.01 s navigation step, 24 GNSS channel
   (``run_episode(use_batch=False)``) and of its ``step_row`` fast path on the episode's
   measurements (the path the estimator FMU calls); the estimator FMU's doStep against
   empty + ``step_row`` shows what the FMU layer (FMI calls, checks, value store) adds.
+* a second table splits the estimator FMU's doStep and lc-ekf's ``step_row`` (each step
+  timed alone, medians) into the steps without a GNSS epoch and those with one, and
+  gives their difference less the empty doStep: the FMU layer's own cost per step.
 
 Rows are timed in interleaved rounds; the medians are printed, in microseconds of CPU
 time of this process per step (``time.process_time``; the FMUs run in this process), so
@@ -69,6 +72,7 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
         prn = np.asarray(sim.constellation.prn)
         meas = [b.measurement(i) for b in (measurement_batch(c, prn, dt) for c in sim.chunks(10_000))
                 for i in range(len(b))]
+        epoch = np.array([m.gnss is not None for m in meas[warm:warm + steps]])  # the timed steps with a GNSS epoch
         for _ in range(rounds):
             with FmuInstance(empty, "empty") as inst:
                 inst.initialize()
@@ -108,6 +112,16 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
             for m in meas[warm:warm + steps]:
                 step_row(m)
             add("lc_row", (clock() - t0) / steps)
+            lc.reset(context, start.prior)  # again, each step timed alone (as the FMU's doSteps are)
+            for m in meas[:warm]:
+                step_row(m)
+            each = []
+            for m in meas[warm:warm + steps]:
+                t0 = clock()
+                step_row(m)
+                each.append(clock() - t0)
+            add("lc_row_quiet", float(np.median(np.asarray(each)[~epoch])))
+            add("lc_row_epoch", float(np.median(np.asarray(each)[epoch])))
             for fmi, est_path in est_paths.items():
                 plant, est = FmuInstance(plants[fmi], "plant"), FmuInstance(est_path, "estimator")
                 try:
@@ -116,15 +130,17 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
                     push = Connection(plant, est).push
 
                     push()
-                    spent = 0.0
+                    each = []
                     for k in range(warm + steps):
                         plant.do_step(k * dt, dt)
                         push()
                         t0 = clock()
                         est.do_step(k * dt, dt)
                         if k >= warm:
-                            spent += clock() - t0
-                    add(f"estimator{fmi}", spent / steps)
+                            each.append(clock() - t0)
+                    add(f"estimator{fmi}", sum(each) / steps)
+                    add(f"estimator{fmi}_quiet", float(np.median(np.asarray(each)[~epoch])))
+                    add(f"estimator{fmi}_epoch", float(np.median(np.asarray(each)[epoch])))
                 finally:
                     plant.free()
                     est.free()
@@ -155,6 +171,20 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
         m = med[f"estimator{fmi}"]
         print(f"| estimator FMU doStep (FMI {fmi}) against its own step_row path | {m * us:.1f} | empty + lc-ekf "
               f"step_row = {floor_row * us:.1f} us | {m / floor_row:.2f} | |")
+    print()
+    print(f"Each step timed alone, median over the {int((~epoch).sum())} timed steps without a GNSS epoch and the "
+          f"{int(epoch.sum())} with one (the FMU's own cost: doStep against empty + step_row on the same steps)")
+    print()
+    print("| case | steps without an epoch, us | with an epoch, us |")
+    print("|---|---:|---:|")
+    print(f"| lc-ekf step_row | {med['lc_row_quiet'] * us:.1f} | {med['lc_row_epoch'] * us:.1f} |")
+    for fmi in (2, 3):
+        q, e = med[f"estimator{fmi}_quiet"], med[f"estimator{fmi}_epoch"]
+        print(f"| estimator FMU doStep (FMI {fmi}) | {q * us:.1f} | {e * us:.1f} |")
+    for fmi in (2, 3):
+        q, e = med[f"estimator{fmi}_quiet"], med[f"estimator{fmi}_epoch"]
+        print(f"| FMU doStep - (empty + step_row), FMI {fmi} | {(q - med['empty'] - med['lc_row_quiet']) * us:.1f} "
+              f"| {(e - med['empty'] - med['lc_row_epoch']) * us:.1f} |")
 
 if __name__ == "__main__":
     main(*(int(a) for a in sys.argv[1:]))

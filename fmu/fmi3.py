@@ -34,6 +34,7 @@ class _Slave(SlaveValues, Fmi3Slave):
         self._failed = False
         self.rt = self.runtime_class(self.resources, 3, self._log)
         self.time = 0.0
+        self._time = self.rt.store.real  # element 0: FMI 3's independent variable, set after every step
 
     def _log(self, message: str, level: str = "info") -> None:
         self.log(message, _LEVEL[level])
@@ -68,8 +69,7 @@ class _Slave(SlaveValues, Fmi3Slave):
         except Exception as exc:  # a bug must not take the host down: report, refuse the step
             self.log(f"doStep failed: {type(exc).__name__}: {exc}", Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)
-        self.time = current_time + step_size
-        self.rt.store.set_time(self.time)
+        self.time = self._time[0] = current_time + step_size  # value reference 0 (ValueStore.set_time)
         return _OK
 
     def get_float64(self, vrs):

@@ -237,14 +237,14 @@ class ValueStore:
         """Set the value references ``vrs`` from ``new_values`` (flat, in order; FmuError on
         a wrong reference or type, a variable that cannot be set now, too few values)."""
         where, n = self._resolve(vrs, type_, allowed)
-        values = list(new_values)
+        values = new_values if type(new_values) is list else list(new_values)  # the shims pass lists
         if len(values) < n:
             raise FmuError(f"value references {list(vrs)}: expected {n} values, got {len(values)}")
         if type_ == "string":
             for i, value in zip(range(where.start, where.stop) if type(where) is slice else where.tolist(), values):
                 self.strings[i] = value
             return
-        self.arrays[type_][where] = values[:n]
+        self.arrays[type_][where] = values if len(values) == n else values[:n]
 
     def set_time(self, t: float) -> None:
         """FMI 3's independent variable (value reference 0)."""
