@@ -207,11 +207,17 @@ def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere
     if k == 0:
         z = np.zeros((0, 3))
         return np.zeros(0, bool), z, np.zeros((0, 3, 3)), z, np.zeros((0, 3, 3)), np.zeros(0, int)
-    sat_pos = np.stack([o.sat_pos_e for o in observations])
-    sat_vel = np.stack([o.sat_vel_e for o in observations])
-    rho = np.stack([o.pseudorange_m for o in observations])
-    rate = np.stack([o.pseudorange_rate_mps for o in observations])
-    valid = np.stack([np.asarray(o.valid, bool) for o in observations])
+    if k == 1:  # a step-wise estimator's epoch: views, the values np.stack would copy
+        (o,) = observations
+        sat_pos, sat_vel = np.asarray(o.sat_pos_e)[None], np.asarray(o.sat_vel_e)[None]
+        rho, rate = np.asarray(o.pseudorange_m)[None], np.asarray(o.pseudorange_rate_mps)[None]
+        valid = np.asarray(o.valid, bool)[None]
+    else:
+        sat_pos = np.stack([o.sat_pos_e for o in observations])
+        sat_vel = np.stack([o.sat_vel_e for o in observations])
+        rho = np.stack([o.pseudorange_m for o in observations])
+        rate = np.stack([o.pseudorange_rate_mps for o in observations])
+        valid = np.stack([np.asarray(o.valid, bool) for o in observations])
     n_valid = valid.sum(axis=1)
     fix = least_squares_fix(sat_pos, rho, valid, initial=initial_e)
     if atmosphere is not None:  # (LC.6) the receiver's a-priori correction
