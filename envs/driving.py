@@ -152,19 +152,29 @@ References
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import ArrayLike
 
 from navsim.episode import step_batch
 from navsim.errors import ConfigError
+from navsim.motion import ExternalMotion
 
 from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 from .plant import TrainParameters, TrainPlant
 from .spaces import check_action
+
+if TYPE_CHECKING:
+    from navsim.estimators.base import Estimator
+    from navsim.scenario import Scenario
+    from navsim.simulator import Chunk
+    from navsim.track import Track
+
+    from .render import FrameView, TrackRenderer
 
 __all__ = ["DrivingEnv", "braking_curve_driver", "schedule_of"]
 
@@ -189,7 +199,7 @@ def braking_curve_driver(obs: np.ndarray, b: float = 0.45, k: float = 1.5, cruis
         u = -1.0 if d < 0.8 else 0.15
     return np.array([np.clip(u, -1.0, 1.0)], np.float32)
 
-def schedule_of(scenario, slack: float):
+def schedule_of(scenario: Scenario, slack: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(marks (m), dwell (s), scheduled arrival (s), scheduled departure (s)) per station.
 
     The arrival times of the core's jerk-limited timetable for the scenario's stations,
@@ -215,7 +225,7 @@ def schedule_of(scenario, slack: float):
 class _MapTable:
     """Track positions, tangents and grades at 1 m spacing, for projecting estimates."""
 
-    def __init__(self, track, step_m: float = 1.0):
+    def __init__(self, track: Track, step_m: float = 1.0):
         from navsim.track import track_frame
 
         n = int(math.ceil(track.length / step_m)) + 1
@@ -291,8 +301,10 @@ class DrivingEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 1.0}  # per instance: 1 / decision_period_s
     WEIGHTS = {"comfort": 0.05, "energy": 0.05, "stop_bonus": 10.0, "late": 5.0, "early": 0.2, "overrun": 20.0,
                "unserved": 40.0}
+    observation_space: gym.spaces.Box
+    estimator: Estimator
 
-    def __init__(self, scenario="mountain-railway", *, estimator: Any = "along-track",
+    def __init__(self, scenario: str | Scenario = "mountain-railway", *, estimator: str | Estimator = "along-track",
                  estimator_options: dict | None = None, decision_period_s: float = 1.0, slack: float = 0.05,
                  stop_tolerance_m: float = 2.0, weights: dict | None = None, train: TrainParameters | None = None,
                  truth_in_info: bool = False, progress_shaping: float = 0.0,
@@ -352,7 +364,7 @@ class DrivingEnv(gym.Env):
         self.episode_score = bool(episode_score)
         self._record = self.episode_score or render_mode is not None
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.steps_per_decision * self.dt)}
-        self._renderer = None
+        self._renderer: TrackRenderer | None = None
         self.n_steps = self.scenario.timing.steps
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         low = np.array([-1, -1, -5, -1, 0, 0, -1, 0, 0, -3, -5, -1, 0], dtype=np.float32)
@@ -361,7 +373,7 @@ class DrivingEnv(gym.Env):
         self._k = -1
 
     # ------------------------------------------------------------------ episode
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**63 - 1))
@@ -420,7 +432,7 @@ class DrivingEnv(gym.Env):
             phi -= self.approach_shaping * min(abs(float(self.marks[target]) - s), 50.0) / 50.0
         return phi
 
-    def _navigate(self, n: int):
+    def _navigate(self, n: int) -> Chunk:
         """Push the plant's motion for n steps, simulate, run the estimator; update the
         navigation-derived observation parts."""
         from navsim.episode import measurement_batch
@@ -442,7 +454,7 @@ class DrivingEnv(gym.Env):
             self._frac_valid = float(chunk.gnss.valid[-1].sum()) / len(self.prn)
         return chunk
 
-    def step(self, action):
+    def step(self, action: ArrayLike) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._k < 0 or self._k >= self.n_steps:
             raise RuntimeError("DrivingEnv.step: call reset() first")
         n = min(self.steps_per_decision, self.n_steps - self._k)
@@ -459,8 +471,10 @@ class DrivingEnv(gym.Env):
         if s[-1] > self.sim.track.length:
             s = np.minimum(s, self.sim.track.length)  # buffer stop at the end of the line
         times = (k0 + 1 + np.arange(n)) * self.dt
+        profile = self.sim.profile
+        assert isinstance(profile, ExternalMotion), "the scenario's motion is external (__init__)"
         for tk, sk, vk, ak in zip(times.tolist(), s.tolist(), v.tolist(), a.tolist()):
-            self.sim.profile.push(tk, sk, vk, ak)  # (P.1)-(P.2) states into the external motion
+            profile.push(tk, sk, vk, ak)  # (P.1)-(P.2) states into the external motion
         self._navigate(n)
         self._k = k0 + n
         self.t = self._k * self.dt
@@ -528,7 +542,7 @@ class DrivingEnv(gym.Env):
                 setattr(tape, name, getattr(tape, name)[:steps])
             if tape.cov_array is not None:
                 tape.cov_array = tape.cov_array[:steps]
-            if tape.nis_array is not None:
+            if tape.nis_array is not None and tape.nis_dof_array is not None:  # made together
                 tape.nis_array, tape.nis_dof_array = tape.nis_array[:steps], tape.nis_dof_array[:steps]
             scen = self.scenario.with_overrides({"timing": {"duration_s": steps * self.dt}}) if steps < self.n_steps \
                 else self.scenario
@@ -542,7 +556,7 @@ class DrivingEnv(gym.Env):
         return self._observation(), float(reward), terminated, truncated, info
 
     # ------------------------------------------------------------------ rendering
-    def render_view(self):
+    def render_view(self) -> FrameView:
         """What a frame shows (:mod:`navsim.envs.render`): the train's true and estimated
         position and speed, the stations, the next stop."""
         from .render import FrameView, tape_view
@@ -565,14 +579,14 @@ class DrivingEnv(gym.Env):
         view.marks_lat, view.marks_lon = lat_m, lon_m
         return view
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
         from .render import render_env
 
         frame, self._renderer = render_env(self, self._renderer)
         return frame
 
-    def close(self):
+    def close(self) -> None:
         """Release the window (if any); harmless to call more than once."""
         if self._renderer is not None:
             self._renderer.close()

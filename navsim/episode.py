@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator, cast
 
 import numpy as np
 
@@ -112,7 +112,7 @@ def step_batch(estimator: Estimator, batch: MeasurementBatch) -> EstimateBatch:
         covs.append(e.covariance)
         nis.append(np.nan if e.nis is None else e.nis)
         dof.append(e.nis_dof or 0)
-    cov = None if any(c is None for c in covs) else np.stack(covs)
+    cov = None if any(c is None for c in covs) else np.stack(cast("list[np.ndarray]", covs))
     return EstimateBatch(np.array(rows), cov, np.array(nis, dtype=float), np.array(dof, dtype=int))
 
 
@@ -239,10 +239,12 @@ class EpisodeRecorder:
         self.gnss_n_valid.append(np.asarray(n_valid, dtype=int))
         self.gnss_outage.append(np.asarray(receiver_outage, dtype=bool))
 
-    def _nis_arrays(self) -> None:
-        if self.nis_array is None:
-            self.nis_array = np.full(self.n, np.nan)
-            self.nis_dof_array = np.zeros(self.n, dtype=int)
+    def _nis_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        nis, dof = self.nis_array, self.nis_dof_array
+        if nis is None or dof is None:  # made together, on the first NIS recorded
+            nis = self.nis_array = np.full(self.n, np.nan)
+            dof = self.nis_dof_array = np.zeros(self.n, dtype=int)
+        return nis, dof
 
     def _cov_array(self) -> np.ndarray:
         if self.cov_array is None:
@@ -258,9 +260,9 @@ class EpisodeRecorder:
         self.actions.extend(out.solution.tolist())
         if out.covariance is not None:
             self._cov_array()[k] = out.covariance
-        self._nis_arrays()
-        self.nis_array[k] = out.nis
-        self.nis_dof_array[k] = out.nis_dof
+        nis, dof = self._nis_arrays()
+        nis[k] = out.nis
+        dof[k] = out.nis_dof
         if cpu_s is not None:
             self._cpu_array()[k] = cpu_s
 
@@ -277,8 +279,8 @@ class EpisodeRecorder:
         if e.covariance is not None:
             self._cov_array()[k] = e.covariance
         if e.nis is not None:
-            self._nis_arrays()
-            self.nis_array[k], self.nis_dof_array[k] = e.nis, e.nis_dof or 0
+            nis, dof = self._nis_arrays()
+            nis[k], dof[k] = e.nis, e.nis_dof or 0
         if cpu_s is not None:
             self._cpu_array()[k] = cpu_s
 
@@ -302,7 +304,7 @@ class EpisodeRecorder:
         nis = np.full(n, np.nan)
         nis_dof = np.zeros(n, dtype=int)
         if self.nis_array is not None:
-            nis, nis_dof = self.nis_array, self.nis_dof_array
+            nis, nis_dof = self._nis_arrays()
         for k, (value, dof) in self.nis.items():
             nis[k], nis_dof[k] = value, dof
         cpu = np.full(n, np.nan) if self.cpu_array is None else self.cpu_array

@@ -36,7 +36,7 @@ import dataclasses
 import math
 import sys
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Iterator, Mapping, Sequence, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -64,6 +64,10 @@ from .types import Prior  # the initial estimate handed to estimators: truth plu
 from .validation import check_seed, check_steps, validate_scenario
 
 if TYPE_CHECKING:  # type hints only
+    from concurrent.futures import Future, ThreadPoolExecutor
+
+    from _typeshed import DataclassInstance
+
     from .earth import EarthModel
     from .scenario import TimingConfig
     from .track import Track
@@ -257,12 +261,15 @@ def _oscillations(scenario: Scenario) -> tuple[Oscillation, ...]:
     )
 
 
-def _replace_checked(obj, overrides: dict, prefix: str):
+_D = TypeVar("_D", bound="DataclassInstance")
+
+
+def _replace_checked(obj: _D, overrides: Mapping[str, Any], prefix: str) -> _D:
     names = {f.name for f in dataclasses.fields(obj)}
     for key in overrides:
         if key not in names:
             raise ConfigError(f"{prefix}.{key}", f"a field of {type(obj).__name__}: {sorted(names)}", key)
-    converted = {}
+    converted: dict[str, Any] = {}
     for key, value in overrides.items():
         current = getattr(obj, key)
         converted[key] = np.asarray(value, dtype=float) if isinstance(current, np.ndarray) else (
@@ -278,7 +285,7 @@ def _replace_checked(obj, overrides: dict, prefix: str):
 def build_imu_model(scenario: Scenario) -> imu_mod.ImuErrorModel:
     """The truth-side IMU error model: preset plus ``[imu.gyro]``/``[imu.accel]`` overrides."""
     model = imu_mod.imu_preset(scenario.imu.preset)
-    changes = {}
+    changes: dict[str, Any] = {}
     if scenario.imu.gyro:
         changes["gyro"] = _replace_checked(model.gyro, scenario.imu.gyro, "imu.gyro")
     if scenario.imu.accel:
@@ -335,8 +342,8 @@ class Simulator:
             self.track, self.profile, self.oscillations, self.timing.imu_period_s, scenario.imu.orders,
             scenario.imu.quadrature_nodes, t_end=self.timing.duration_s)
         self._check_motion_fits_track()
-        self._step = None
-        self._no_epochs = None  # the empty GnssEpochs of an epoch-less chunk (built once)
+        self._step: int | None = None
+        self._no_epochs: gnss_mod.GnssEpochs | None = None  # the empty GnssEpochs of an epoch-less chunk (built once)
 
     # -- validation ----------------------------------------------------------------
     def _check_motion_fits_track(self) -> None:
@@ -372,8 +379,7 @@ class Simulator:
     @property
     def step_index(self) -> int:
         """Number of navigation steps generated since the last reset."""
-        self._require_reset()
-        return self._step
+        return self._require_reset()
 
     @property
     def t(self) -> float:
@@ -384,9 +390,11 @@ class Simulator:
     def done(self) -> bool:
         return self.step_index >= self.timing.steps
 
-    def _require_reset(self):
+    def _require_reset(self) -> int:
+        """The step index; RuntimeError before the first reset."""
         if self._step is None:
             raise RuntimeError("call Simulator.reset(seed) before stepping")
+        return self._step
 
     def reset(self, seed: int | None = None) -> Start:
         """Start a new episode: fresh random streams, initial sensor states, the prior."""
@@ -395,7 +403,8 @@ class Simulator:
         self.rngs = dict(zip(STREAMS, (np.random.Generator(np.random.PCG64(s)) for s in seq.spawn(len(STREAMS)))))
         self._step = 0
         self._served = 0
-        self._buffer, self._buffer_pos = None, 0
+        self._buffer: Chunk | None = None
+        self._buffer_pos = 0
         if isinstance(self.profile, ExternalMotion):
             m = self.scenario.motion
             self.profile.reset(0.0, m.start_s_m, m.speed_mps, 0.0)
@@ -430,7 +439,7 @@ class Simulator:
 
     def truth_at(self, t: ArrayLike) -> TrueState:
         """The true state at arbitrary times (s) within the episode."""
-        return true_state(self.track, self.profile, t, self.oscillations)
+        return true_state(self.track, self.profile, np.asarray(t, dtype=float), self.oscillations)
 
     # -- external motion ---------------------------------------------------------------
     def push_motion(self, s: float, speed: float, accel: float, t: float | None = None) -> None:
@@ -489,7 +498,7 @@ class Simulator:
         """Iterate over the rest of the episode in chunks of ``chunk_steps`` steps."""
         chunk_steps = check_steps(chunk_steps, self.scenario, "chunk_steps")
         self._require_reset()
-        while self._step < self.timing.steps:
+        while self.step_index < self.timing.steps:
             yield self.advance(chunk_steps)
 
     def run(self, seed: int | None = None, chunk_steps: int = 10_000) -> tuple[Start, list[Chunk]]:
@@ -507,7 +516,7 @@ def _unreferenced_count() -> int:
 _UNREFERENCED = _unreferenced_count()
 
 
-def _output_buffers(pool: list | None, shapes: tuple) -> list[np.ndarray]:
+def _output_buffers(pool: list[list[np.ndarray]] | None, shapes: tuple[tuple[int, ...], ...]) -> list[np.ndarray]:
     """Arrays of ``shapes`` for a chunk's IMU output: a set of ``pool`` that nothing else
     references any more (no view of it is alive: every view and every chunk, observation
     or record made from one holds a reference to its arrays), else new arrays (and the
@@ -529,8 +538,9 @@ def _output_buffers(pool: list | None, shapes: tuple) -> list[np.ndarray]:
     return bufs
 
 
-def _imu_errors(sims, t_start, h, dtheta_true, dv_true, omega_end, force_end, executor,
-                pool: list | None = None) -> imu_mod.ImuOutput | _Pending:
+def _imu_errors(sims: list[Simulator], t_start: np.ndarray, h: float, dtheta_true: np.ndarray, dv_true: np.ndarray,
+                omega_end: np.ndarray, force_end: np.ndarray, executor: ThreadPoolExecutor | None,
+                pool: list[list[np.ndarray]] | None = None) -> imu_mod.ImuOutput | _Pending:
     """The IMU errors of every member, in cache-sized tiles of members x samples.
 
     Members are taken in groups of at most :data:`IMU_GROUP` and the samples in blocks
@@ -595,7 +605,7 @@ def _group_state(part: list[Simulator]) -> imu_mod.BatchImuState:
 class _Pending:
     """IMU outputs being computed on worker threads; :meth:`result` waits for them."""
 
-    def __init__(self, out: imu_mod.ImuOutput, futures: list) -> None:
+    def __init__(self, out: imu_mod.ImuOutput, futures: list[Future[None]]) -> None:
         self.out, self.futures = out, futures
 
     def result(self) -> imu_mod.ImuOutput:
@@ -604,7 +614,10 @@ class _Pending:
         return self.out
 
 
-def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
+def _other_sensors(sims: list[Simulator], lead: Simulator, truth: TrueState, steps: np.ndarray, t_end_steps: np.ndarray,
+                   timing: TimingConfig, dt: float, members: int
+                   ) -> tuple[np.ndarray, gnss_mod.GnssEpochs | None, np.ndarray, odometer_mod.OdometerOutput | None,
+                              baro_mod.BaroOutput | None]:
     """GNSS epochs and outages, odometer and barometer of a chunk (each member's own
     streams and states; no IMU state is read or written)."""
     # --- GNSS epochs at the end of every steps_per_epoch-th step
@@ -612,13 +625,13 @@ def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
     gnss_epochs, receiver_outage = None, np.zeros((members, len(epoch_steps)), dtype=bool)
     if lead.scenario.gnss.enabled and not len(epoch_steps):
         # no epoch in these steps: nothing is drawn or advanced, reuse the empty epochs
-        if lead._no_epochs is None:
-            empty, _ = gnss_mod.simulate_epochs(
+        no = lead._no_epochs
+        if no is None:
+            no, _ = gnss_mod.simulate_epochs(
                 t_end_steps[:0], truth.position_e[:0], truth.velocity_e[:0], lead.constellation,
                 lead.gnss_model, lead.gnss_state, np.random.default_rng(0), lead.earth)
             for sim in sims:
-                sim._no_epochs = empty
-        no = lead._no_epochs
+                sim._no_epochs = no
         gnss_epochs = type(no)(**{f: np.broadcast_to(getattr(no, f), (members, *getattr(no, f).shape))
                                   for f in type(no).__slots__})
     elif lead.scenario.gnss.enabled:
@@ -627,7 +640,8 @@ def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
         if lead.scenario.gnss.has_lever_arm:  # measured at the antenna, not at the IMU
             mat_eb = np.swapaxes(mat_en(truth.lat[idx], truth.lon[idx]), -1, -2) @ truth.mat_nb[idx]
             antenna_e, antenna_vel_e = gnss_mod.antenna_state(
-                antenna_e, antenna_vel_e, mat_eb, truth.omega_ib_b[idx], lead.scenario.gnss.lever_arm_m, lead.earth)
+                antenna_e, antenna_vel_e, mat_eb, truth.omega_ib_b[idx],
+                np.asarray(lead.scenario.gnss.lever_arm_m, dtype=float), lead.earth)
         geometry = gnss_mod.sky_geometry(t_end_steps[idx], antenna_e, lead.constellation, lead.earth)
         gnss_epochs, gnss_states = gnss_mod.simulate_epochs_batch(
             t_end_steps[idx], antenna_e, antenna_vel_e, lead.constellation,
@@ -650,8 +664,8 @@ def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
             ds_true, truth.accel_along, lead.odometer_model, [sim.odometer_state for sim in sims],
             [sim.rngs["odometer"] for sim in sims], dt=dt)
         s_end = float(truth.s[-1])
-        for sim, o_state in zip(sims, odo_states):
-            sim.odometer_state, sim._odometer_s = o_state, s_end
+        for sim, odo_state in zip(sims, odo_states):
+            sim.odometer_state, sim._odometer_s = odo_state, s_end
     # --- barometric altimeter: the true height at the step ends, errors per member
     baro = None
     if lead.baro_model is not None:
@@ -663,7 +677,8 @@ def _other_sensors(sims, lead, truth, steps, t_end_steps, timing, dt, members):
 
 
 @limited  # small products: single-threaded BLAS (navsim.threads)
-def _generate(sims: list[Simulator], n_steps: int, executor=None, pool: list | None = None) -> ChunkBatch:
+def _generate(sims: list[Simulator], n_steps: int, executor: ThreadPoolExecutor | None = None,
+              pool: list[list[np.ndarray]] | None = None) -> ChunkBatch:
     """Generate the next steps of simulators in lockstep on one scenario and truth.
 
     The truth, the satellite geometry and the deterministic outage masks are computed
@@ -671,10 +686,9 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None, pool: list | N
     batched sensor functions, so simulator j gets exactly the numbers it would get alone.
     """
     lead = sims[0]
-    for sim in sims:
-        sim._require_reset()
-    k0 = lead._step
-    if any(sim._step != k0 for sim in sims):
+    at = [sim._require_reset() for sim in sims]
+    k0 = at[0]
+    if any(k != k0 for k in at):
         raise RuntimeError("simulators out of lockstep")
     timing = lead.timing
     n = min(int(n_steps), timing.steps - k0)
@@ -693,7 +707,7 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None, pool: list | N
     dtheta_true, dv_true = ideal.dtheta_r, ideal.dv_r
     omega_end, force_end = ideal.omega_end, ideal.force_end
     if lead._imu_error_free:
-        def shared(a):
+        def shared(a: np.ndarray) -> np.ndarray:
             return np.broadcast_to(a, (members, *a.shape))
         imu_out: imu_mod.ImuOutput | _Pending = imu_mod.ImuOutput(shared(dtheta_true), shared(dv_true),
                                                                   shared(omega_end), shared(force_end))
@@ -719,7 +733,7 @@ def _generate(sims: list[Simulator], n_steps: int, executor=None, pool: list | N
         rate_b=out.rate_b.reshape(members, n, m, 3), accel_b=out.accel_b.reshape(members, n, m, 3),
     )
     for sim in sims:
-        sim._step += n
+        sim._step = k0 + n  # every member was at k0 (lockstep)
     return ChunkBatch(step0=k0, t=t_end_steps, truth=truth, imu=imu, gnss=gnss_epochs,
                       gnss_step=epoch_steps, receiver_outage=receiver_outage, odometer=odometer, baro=baro)
 
