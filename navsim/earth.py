@@ -80,7 +80,7 @@ class EarthModel:
         """First eccentricity squared."""
         return self.f * (2.0 - self.f)
 
-    def radii(self, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def radii(self, lat: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Meridian and prime-vertical radii of curvature.
 
         Returns
@@ -98,7 +98,7 @@ class EarthModel:
         r_n = self.a * (1.0 - self.e2) / w**3
         return r_n, r_e
 
-    def radii_derivative(self, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def radii_derivative(self, lat: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """d R_N / d lat and d R_E / d lat, m/rad."""
         lat = np.asarray(lat, dtype=float)
         if self.f == 0.0:

@@ -19,6 +19,8 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
+from typing import Any, Callable
 
 from ..errors import ConfigError
 from .base import Context, Estimate, Estimator, GnssObservation, Measurement, NominalGnss, NominalImu
@@ -108,7 +110,7 @@ def available() -> list[str]:
     return names
 
 
-def _import_module(module_name: str, given: str):
+def _import_module(module_name: str, given: str) -> ModuleType:
     """Import ``module_name`` (a dotted name, or a ``.py`` file resolved against the
     current directory); the current directory is searched too, as a user running
     ``navsim`` from a project folder expects."""
@@ -121,6 +123,8 @@ def _import_module(module_name: str, given: str):
         if mod_name in sys.modules:
             return sys.modules[mod_name]
         spec = importlib.util.spec_from_file_location(mod_name, path)
+        if spec is None or spec.loader is None:  # not for a .py file; the checker cannot know
+            raise ConfigError("estimator", "a Python file Python can load", given)
         module = importlib.util.module_from_spec(spec)
         sys.modules[mod_name] = module
         try:
@@ -135,7 +139,7 @@ def _import_module(module_name: str, given: str):
     return importlib.import_module(module_name)
 
 
-def _factory(name: str):
+def _factory(name: str) -> Callable[..., Any]:
     """The factory behind a registry name or an import path, or a ConfigError."""
     target = _REGISTRY.get(name)
     if target is None:
@@ -163,7 +167,7 @@ def check(name: str) -> None:
     _factory(name)
 
 
-def make(name: str, **options):
+def make(name: str, **options: Any) -> Estimator:
     """Build an estimator by registry name or import path (``package.module:Factory``,
     ``path/to/file.py:Factory``) with keyword options."""
     factory = _factory(name)

@@ -82,21 +82,41 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..receiver import least_squares_fix, velocity_fix
 from .base import Context, Estimate, Measurement, Prior
 
+if TYPE_CHECKING:  # filterpy is untyped: these are Any to the checker
+    from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter
+
 __all__ = ["from_filterpy", "FilterpyEstimator"]
+
+Filter = Union["KalmanFilter", "ExtendedKalmanFilter", "UnscentedKalmanFilter"]
+"""A configured filterpy filter (the three kinds :func:`from_filterpy` takes)."""
+Transition = Callable[[np.ndarray, float], np.ndarray]
+"""``fx(x, dt) -> x`` (or ``-> F`` for ``fx_jacobian``)."""
+MeasurementFunction = Callable[[np.ndarray], np.ndarray]
+"""``hx(x) -> z`` (or ``-> H`` for ``hx_jacobian``)."""
+Measure = Callable[[Measurement, "FilterpyEstimator"], "tuple[ArrayLike, ArrayLike] | None"]
+"""``measure(measurement, adapter) -> (z, R)`` or None (no update)."""
+Output = Callable[[np.ndarray, np.ndarray], tuple[ArrayLike, ArrayLike, ArrayLike]]
+"""``output(x, P) -> (p_enu, v_enu, cov6)``."""
+Init = Callable[[Filter, Context, Prior], None]
+"""``init(kf, context, prior)``: set ``kf.x`` and ``kf.P``."""
+Configure = Callable[[Filter, Context], None]
+"""``configure(kf, context)``: e.g. F, Q for ``context.nav_period_s``."""
 
 SIGMA_FLOOR_PR_M = 1e-3
 SIGMA_FLOOR_RATE_MPS = 1e-4
 
 
-def _kind(kf) -> str:
+def _kind(kf: Filter) -> str:
     from filterpy.kalman import ExtendedKalmanFilter, KalmanFilter, UnscentedKalmanFilter
 
     if isinstance(kf, UnscentedKalmanFilter):
@@ -109,10 +129,10 @@ def _kind(kf) -> str:
                       type(kf).__name__)
 
 
-def from_filterpy(kf, fx: Callable | None = None, hx: Callable | None = None, *,
-                  fx_jacobian: Callable | None = None, hx_jacobian: Callable | None = None,
-                  measure: str | Callable = "fix", output: Callable | None = None,
-                  init: Callable | None = None, configure: Callable | None = None,
+def from_filterpy(kf: Filter, fx: Transition | None = None, hx: MeasurementFunction | None = None, *,
+                  fx_jacobian: Transition | None = None, hx_jacobian: MeasurementFunction | None = None,
+                  measure: str | Measure = "fix", output: Output | None = None,
+                  init: Init | None = None, configure: Configure | None = None,
                   min_satellites: int = 4) -> FilterpyEstimator:
     """Turn a configured filterpy filter plus ``fx``/``hx`` into a navsim estimator.
 
@@ -146,8 +166,10 @@ def from_filterpy(kf, fx: Callable | None = None, hx: Callable | None = None, *,
 class FilterpyEstimator:
     """A filterpy filter behind navsim's estimator interface (built by :func:`from_filterpy`)."""
 
-    def __init__(self, kf, fx=None, hx=None, *, fx_jacobian=None, hx_jacobian=None, measure="fix", output=None,
-                 init=None, configure=None, min_satellites: int = 4) -> None:
+    def __init__(self, kf: Filter, fx: Transition | None = None, hx: MeasurementFunction | None = None, *,
+                 fx_jacobian: Transition | None = None, hx_jacobian: MeasurementFunction | None = None,
+                 measure: str | Measure = "fix", output: Output | None = None, init: Init | None = None,
+                 configure: Configure | None = None, min_satellites: int = 4) -> None:
         self.kind = _kind(kf)
         if not (callable(measure) or measure in ("fix", "position")):
             raise ConfigError("from_filterpy measure", "'fix', 'position' or a callable", measure)
@@ -160,7 +182,7 @@ class FilterpyEstimator:
         self.fx, self.hx, self.fx_jacobian, self.hx_jacobian = fx, hx, fx_jacobian, hx_jacobian
         self.measure, self.output, self.init, self.configure = measure, output, init, configure
         self.min_satellites = int(min_satellites)
-        self.kf = None
+        self.kf: Filter | None = None
 
     # ------------------------------------------------------------------ frames
     def to_enu(self, r_e: np.ndarray) -> np.ndarray:
@@ -201,7 +223,7 @@ class FilterpyEstimator:
             self.configure(kf, context)
         self.last_extra: dict = {}
 
-    def _fix(self, m: Measurement):
+    def _fix(self, m: Measurement) -> tuple[np.ndarray, np.ndarray] | None:
         g = m.gnss
         if g is None or np.count_nonzero(g.valid) < self.min_satellites:
             return None
@@ -222,9 +244,10 @@ class FilterpyEstimator:
         R[3:, 3:] = self.sigma_rate**2 * (c @ vfix.covariance[:3, :3] @ c.T)
         return np.concatenate([p, c @ vfix.velocity_e]), R
 
-    def _state(self):
+    def _state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_enu, v_enu, cov6) of the filter's state (``output`` or the first six states)."""
         kf = self.kf
+        assert kf is not None, "reset() first"
         x = np.ravel(kf.x)
         if self.output is not None:
             p, v, cov = self.output(x, np.asarray(kf.P))
@@ -233,6 +256,7 @@ class FilterpyEstimator:
 
     def _predict(self, dt: float) -> None:
         kf = self.kf
+        assert kf is not None, "reset() first"
         if self.kind == "kf":
             kf.predict()
         elif self.kind == "ekf":
@@ -241,7 +265,7 @@ class FilterpyEstimator:
             if self.fx is not None:
                 fx = self.fx
 
-                def predict_x(u=0):
+                def predict_x(u: object = 0) -> None:
                     kf.x = np.asarray(fx(kf.x, dt), dtype=float)
 
                 kf.predict_x = predict_x
@@ -251,6 +275,7 @@ class FilterpyEstimator:
 
     def _update(self, z: np.ndarray, R: np.ndarray) -> float:
         kf = self.kf
+        assert kf is not None, "reset() first"
         k, n = len(z), len(np.ravel(kf.x))
         select = np.eye(k, n)
         if self.kind == "kf":
@@ -272,7 +297,8 @@ class FilterpyEstimator:
             raise ConfigError("FilterpyEstimator", "reset(context, prior) before stepping", "no reset")
         m = measurement
         self._predict(float(m.dt))
-        nis = dof = None
+        nis: float | None = None
+        dof: int | None = None
         if m.gnss is not None:
             got = self.measure(m, self) if callable(self.measure) else self._fix(m)
             if got is not None:

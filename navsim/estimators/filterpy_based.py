@@ -43,13 +43,16 @@ References
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from .base import Context, Prior
 from .loosely import LooselyCoupledEkf
 from .tightly import TightlyCoupledEkf, TightlyCoupledUkf, guarded_cholesky
+
+if TYPE_CHECKING:  # filterpy is untyped: these are Any to the checker
+    from filterpy.kalman import ExtendedKalmanFilter, UnscentedKalmanFilter
 
 __all__ = ["FilterpyUpdate", "FilterpyUnscentedUpdate", "FilterpyLcEkf", "FilterpyTcEkf", "FilterpyTcUkf"]
 
@@ -62,7 +65,7 @@ class FilterpyUpdate:
         from filterpy.kalman import ExtendedKalmanFilter
 
         self._cls = ExtendedKalmanFilter
-        self._filters: dict[tuple[int, int], object] = {}
+        self._filters: dict[tuple[int, int], ExtendedKalmanFilter] = {}
 
     def __call__(self, P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                  float]:
@@ -83,6 +86,7 @@ class FilterpyLcEkf(LooselyCoupledEkf):
 
     def reset(self, context: Context, prior: Prior) -> None:
         super().reset(context, prior)
+        assert self.engine is not None  # made by reset
         self.engine.kalman_update = FilterpyUpdate()
 
 
@@ -107,7 +111,7 @@ class FilterpyUnscentedUpdate:
         from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
         self._ukf, self._points = UnscentedKalmanFilter, MerweScaledSigmaPoints
-        self._filters: dict[tuple, object] = {}
+        self._filters: dict[tuple[int, int, float, float, float], UnscentedKalmanFilter] = {}
         self._fallbacks = 0
 
     def _sqrt(self, A: np.ndarray) -> np.ndarray:

@@ -72,12 +72,15 @@ References
 from __future__ import annotations
 
 import math
+from types import ModuleType
+from typing import Any, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from .base import Context, Estimate, EstimateBatch, GnssObservation, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .paper_ekf import input_polynomial_matrix
 
 __all__ = ["FullStateEkf"]
@@ -86,7 +89,7 @@ _CSTEP = 1e-20
 _N = 9
 
 
-def _dmat(a, b, g, lib=math):
+def _dmat(a: complex, b: complex, g: complex, lib: ModuleType = math) -> tuple[tuple[Any, Any, Any], ...]:
     """D(alpha, beta, gamma) of Appendix 1 (rows), complex-safe with lib=cmath/numpy."""
     sa, ca, sb, cb, sg, cg = lib.sin(a), lib.cos(a), lib.sin(b), lib.cos(b), lib.sin(g), lib.cos(g)
     return ((sb * sa * sg + cb * cg, ca * sg, cb * sa * sg - sb * cg),
@@ -174,7 +177,7 @@ class FullStateEkf(NoiseScalable):
         self._diverged = False
         self._ready = True
 
-    def _from_prior(self, prior):
+    def _from_prior(self, prior: Prior) -> tuple[list[float], np.ndarray]:
         lat, lon, h = float(prior.lat), float(prior.lon), float(prior.h)
         mat_nb = mat_nb_from_hpr(prior.heading, prior.pitch, prior.roll)
         bmat = euler_krylov_matrix(-lat, lon + self._omega * float(prior.t), 0.0)
@@ -196,20 +199,21 @@ class FullStateEkf(NoiseScalable):
         return x, 0.5 * (p + p.T)
 
     @staticmethod
-    def _kin(a, g) -> np.ndarray:
+    def _kin(a: float, g: float) -> np.ndarray:
         sg, cg, ca, ta = math.sin(g), math.cos(g), math.cos(a), math.tan(a)
         return np.array([[cg, -sg, 0.0], [sg / ca, cg / ca, 0.0], [sg * ta, cg * ta, 1.0]])
 
     # ------------------------------------------------------------------ the model (FS.1)-(FS.3)
-    def rhs(self, x, t, w, f):
+    def rhs(self, x: Sequence[float], t: float, w: Sequence[float], f: Sequence[float]) -> tuple[float, ...]:
         """f(x, t) of (FS.1)-(FS.3) at the gyro rate w and specific force f (body axes)."""
         return self._rhs(x, t, w, f, False)[0]
 
-    def jacobian(self, x, t, w, f) -> np.ndarray:
+    def jacobian(self, x: Sequence[float], t: float, w: Sequence[float], f: Sequence[float]) -> np.ndarray:
         """F = df/dx (FS.4), analytic, (9, 9)."""
         return np.array(self._rhs(x, t, w, f, True)[1])
 
-    def _rhs(self, x, t, w, f, jac):
+    def _rhs(self, x: Sequence[float], t: float, w: Sequence[float], f: Sequence[float], jac: bool
+             ) -> tuple[tuple[float, ...], list[list[float]] | None]:
         a, b, g, lam, phi, h, ve, vn, vu = x
         wx, wy, wz = w
         fx, fy, fz = f
@@ -274,7 +278,7 @@ class FullStateEkf(NoiseScalable):
         dw_ve = (0.0, 1.0 / rr, tp / rr)
         dw_vn = (-1.0 / rr, 0.0, 0.0)
 
-        def cross_v(dw):  # dW x V
+        def cross_v(dw: tuple[float, float, float]) -> tuple[float, float, float]:  # dW x V
             return (dw[1] * vu - dw[2] * vn, dw[2] * ve - dw[0] * vu, dw[0] * vn - dw[1] * ve)
 
         c_phi, c_h, c_ve, c_vn = cross_v(dw_phi), cross_v(dw_h), cross_v(dw_ve), cross_v(dw_vn)
@@ -296,7 +300,7 @@ class FullStateEkf(NoiseScalable):
             row[8] = -c_vu[r]
         return out, F
 
-    def _process_noise(self, x) -> np.ndarray:
+    def _process_noise(self, x: Sequence[float]) -> np.ndarray:
         k = self._kin(x[0], x[2])
         Q = np.zeros((_N, _N))
         Q[0:3, 0:3] = self._qd * (k @ k.T)
@@ -304,7 +308,8 @@ class FullStateEkf(NoiseScalable):
         return Q
 
     # ------------------------------------------------------------------ GNSS (2)-(3), (16)
-    def observables(self, x, t, sat_pos_e, sat_vel_e, gyro_rate_b=None):
+    def observables(self, x: Sequence[complex], t: float, sat_pos_e: np.ndarray, sat_vel_e: np.ndarray,
+                    gyro_rate_b: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Predicted pseudoranges and Dopplers (m,) of 003 (2)-(3) at the state x
         (complex-safe: numpy functions throughout), at the antenna with a lever arm."""
         a, b, g, lam, phi, h, ve, vn, vu = x
@@ -331,7 +336,8 @@ class FullStateEkf(NoiseScalable):
         rate = np.sum(d * (sat_vel_e - vel), axis=1) / rho
         return rho, rate
 
-    def gnss_observation(self, x, t, sat_pos_e, sat_vel_e, gyro_rate_b=None):
+    def gnss_observation(self, x: Sequence[float], t: float, sat_pos_e: np.ndarray, sat_vel_e: np.ndarray,
+                         gyro_rate_b: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(h_r, h_v, H): observables and their Jacobian (2m, 9) by the complex step."""
         h_r, h_v = self.observables(x, t, sat_pos_e, sat_vel_e, gyro_rate_b)
         m = len(h_r)
@@ -345,7 +351,7 @@ class FullStateEkf(NoiseScalable):
             H[m:, j] = cv.imag / _CSTEP
         return h_r.real, h_v.real, H
 
-    def _update(self, obs, t, gyro_rate_b):
+    def _update(self, obs: GnssObservation, t: float, gyro_rate_b: np.ndarray | None) -> tuple[float, int] | None:
         valid = np.asarray(obs.valid, dtype=bool)
         if not valid.any():
             return None
@@ -370,13 +376,13 @@ class FullStateEkf(NoiseScalable):
         return float(nu @ np.linalg.solve(S, nu)), 2 * m
 
     # ------------------------------------------------------------------ propagation
-    def _inputs(self, dtheta_r, dv_r) -> np.ndarray:
+    def _inputs(self, dtheta_r: ArrayLike, dv_r: ArrayLike) -> np.ndarray:
         """(n, 18): omega and f at s = 0, 1/2, 1 of each step."""
-        dtheta_r = np.asarray(dtheta_r, dtype=float)
-        dv_r = np.asarray(dv_r, dtype=float)
+        angle = np.asarray(dtheta_r, dtype=float)
+        velocity = np.asarray(dv_r, dtype=float)
         R = self._lvec.shape[1]
-        sw = [dtheta_r[:, r, :] / self._dt_pow[r] for r in range(R)]
-        sf = [dv_r[:, r, :] / self._dt_pow[r] for r in range(R)]
+        sw = [angle[:, r, :] / self._dt_pow[r] for r in range(R)]
+        sf = [velocity[:, r, :] / self._dt_pow[r] for r in range(R)]
         cols = []
         for s in range(3):
             for scaled in (sw, sf):
@@ -386,7 +392,7 @@ class FullStateEkf(NoiseScalable):
                 cols.append(acc)
         return np.concatenate(cols, axis=1)
 
-    def _propagate(self, row, t0, step):
+    def _propagate(self, row: Sequence[float], t0: float, step: int) -> None:
         dt = self._dt
         x = self._x
         w1, f1, w2, f2, w3, f3 = row[0:3], row[3:6], row[6:9], row[9:12], row[12:15], row[15:18]
@@ -407,7 +413,8 @@ class FullStateEkf(NoiseScalable):
         self._x = [xi + c * (a + 2.0 * (b + d) + e) for xi, a, b, d, e in zip(x, k1, k2, k3, k4)]
         self._cov_left -= 1
 
-    def _run(self, t, inp, dtheta1, epochs, steps):
+    def _run(self, t: np.ndarray, inp: np.ndarray, dtheta1: np.ndarray, epochs: dict[int, GnssObservation],
+             steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         n = len(t)
         xs = np.full((n, _N), np.nan)
         ps = np.full((n, _N, _N), np.nan)
@@ -435,7 +442,7 @@ class FullStateEkf(NoiseScalable):
         return xs, ps, nis, dof
 
     # ------------------------------------------------------------------ outputs
-    def outputs(self, X: np.ndarray, P: np.ndarray, t: np.ndarray):
+    def outputs(self, X: np.ndarray, P: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Navigation solutions (n, 9) and 9 x 9 covariances from states (n, 9)."""
         X = np.asarray(X, dtype=float)
         t = np.asarray(t, dtype=float)
@@ -465,7 +472,7 @@ class FullStateEkf(NoiseScalable):
         return sol, 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
     # ------------------------------------------------------------------ interface
-    def _require(self):
+    def _require(self) -> None:
         if not self._ready:
             raise RuntimeError("call FullStateEkf.reset(context, prior) first")
 
@@ -502,9 +509,9 @@ class FullStateEkf(NoiseScalable):
         return self._diverged
 
 
-def _riccati_rk4(P, F, Q, tau):
+def _riccati_rk4(P: np.ndarray, F: np.ndarray, Q: np.ndarray, tau: float) -> np.ndarray:
     """RK4 of P' = F P + P F^T + Q with F, Q frozen over tau."""
-    def rhs(X):
+    def rhs(X: np.ndarray) -> np.ndarray:
         FX = F @ X
         return FX + FX.T + Q
 

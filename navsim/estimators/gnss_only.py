@@ -34,6 +34,7 @@ References
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -42,12 +43,20 @@ from ..errors import ConfigError
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .loosely import gnss_fixes
 
+if TYPE_CHECKING:
+    from filterpy.kalman import KalmanFilter  # untyped: taken as Any
+
+Predict = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+"""``predict(t, solution, covariance)``: fill the rows of times t (views), no state change."""
+TakeFix = Callable[[float, int, int, tuple[np.ndarray, ...], np.ndarray, np.ndarray], None]
+"""``take_fix(t, index, e, fixes, nis, nis_dof)``: update the state with fix e at step index."""
+
 __all__ = ["GnssLeastSquares", "GnssConstantVelocity"]
 
 _NAN_ATT = np.full(3, np.nan)
 
 
-def _check_min_satellites(value) -> int:
+def _check_min_satellites(value: float) -> int:
     if int(value) != value or value < 4:
         raise ConfigError("min_satellites", "an integer >= 4", value)
     return int(value)
@@ -75,7 +84,8 @@ def _estimate(t: float, row: np.ndarray, cov: np.ndarray, nis: float, dof: int, 
                     nis=float(nis) if has else None, nis_dof=int(dof) if has else None, extra=extra)
 
 
-def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndarray, predict, take_fix) -> EstimateBatch:
+def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndarray, predict: Predict,
+                take_fix: TakeFix) -> EstimateBatch:
     """The batch loop both GNSS-only estimators share.
 
     The fixes of all epochs come from one vectorised :func:`gnss_fixes` call. Steps
@@ -158,6 +168,7 @@ class GnssLeastSquares(NoiseScalable):
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step."""
         out = self.step_batch(_single(measurement))
+        assert out.covariance is not None  # _over_fixes fills it
         return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
                          {"n_valid": self._n_valid})
 
@@ -223,7 +234,7 @@ class GnssConstantVelocity(NoiseScalable):
         self.use_velocity = bool(use_velocity)
         self.min_satellites = _check_min_satellites(min_satellites)
         self.measurement_scale = float(measurement_scale)
-        self.kf = None
+        self.kf: KalmanFilter | None = None
 
     def reset(self, context: Context, prior: Prior) -> None:
         """Initialise the filter from the prior (ENU covariance rotated to ECEF)."""
@@ -259,6 +270,7 @@ class GnssConstantVelocity(NoiseScalable):
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step."""
         out = self.step_batch(_single(measurement))
+        assert out.covariance is not None  # _over_fixes fills it
         return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
                          {"n_valid": self._n_valid})
 
@@ -271,6 +283,7 @@ class GnssConstantVelocity(NoiseScalable):
     def _take_fix(self, t: float, index: int, e: int, fixes: tuple, nis: np.ndarray, nis_dof: np.ndarray) -> None:
         _, pos_e, cov_pos, vel_e, cov_vel, n_valid = fixes
         kf = self.kf
+        assert kf is not None  # step_batch checked the reset
         # predict to the epoch: x = F x, P = F P F^T + Q
         kf.F, kf.Q = self._fq(t - self._t)
         kf.predict()
@@ -291,6 +304,7 @@ class GnssConstantVelocity(NoiseScalable):
     def _predicted(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
         """The prediction of the current filter state to times t (no state change)."""
         kf = self.kf
+        assert kf is not None  # step_batch checked the reset
         x = np.asarray(kf.x, dtype=float).reshape(-1)
         P = kf.P
         tau = t - self._t

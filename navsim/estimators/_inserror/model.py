@@ -9,17 +9,26 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...errors import ConfigError
 from ...rotations import mat_nb_from_hpr, mat_to_quat
 from ...strapdown.ins import InsState
 from ..base import NominalImu
 
+if TYPE_CHECKING:
+    from ...earth import EarthModel
+    from ...types import Prior
+
 N_STATES = 15
 POS, VEL, ATT, BG, BA = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
 NAV = slice(0, 9)
+
+Vector = Sequence[float] | np.ndarray
+"""A few numbers read one by one: a tuple or list of floats, or a 1-d array."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +100,7 @@ class ImuNoise:
         )
 
 
-def _gravity_partials(earth, lat: float, h: float) -> tuple[float, float, float, float]:
+def _gravity_partials(earth: EarthModel, lat: float, h: float) -> tuple[float, float, float, float]:
     """d g_N/d lat, d g_N/d h, d g_U/d lat, d g_U/d h of :meth:`EarthModel.gravity_n`."""
     s, c = math.sin(lat), math.cos(lat)
     if earth.name == "spherical":
@@ -110,8 +119,8 @@ def _gravity_partials(earth, lat: float, h: float) -> tuple[float, float, float,
     return 0.0, 0.0, -(dgamma * factor + gamma * dfactor_lat), -gamma * dfactor_h
 
 
-def error_dynamics(lat: float, h: float, velocity_n, mat_nb, specific_force_n, earth,
-                   noise: ImuNoise) -> np.ndarray:
+def error_dynamics(lat: float, h: float, velocity_n: Vector, mat_nb: ArrayLike, specific_force_n: Vector,
+                   earth: EarthModel, noise: ImuNoise) -> np.ndarray:
     """Continuous-time error dynamics matrix F (15, 15) of the module's error state.
 
     Parameters
@@ -207,12 +216,13 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def skew3(v) -> np.ndarray:
+def skew3(v: Vector) -> np.ndarray:
     x, y, z = v
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def lever_arm_terms(mat_nb, omega_ib_b, lever_arm_b, omega_ie_n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def lever_arm_terms(mat_nb: ArrayLike, omega_ib_b: ArrayLike, lever_arm_b: ArrayLike, omega_ie_n: ArrayLike
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The antenna's offset from the INS in ENU, its velocity, and their error partials.
 
     Parameters
@@ -304,7 +314,7 @@ class TransitionSeries:
         D = 0.25 * F2Q @ F2.T
         return cls(F, 0.5 * F2, F2 @ F / 6.0, F2 @ F2 / 24.0, Qc, 0.5 * A, B / 3.0, 0.25 * C3, 0.2 * D)
 
-    def phi(self, tau: np.ndarray, rows=slice(None)) -> np.ndarray:
+    def phi(self, tau: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
         """Phi(tau) rows, shape (k, len(rows), 15)."""
         tau = tau[:, None, None]
         eye = np.eye(N_STATES)[rows]
@@ -324,7 +334,7 @@ class TransitionSeries:
             coef[p] += q[b9]
         return coef.reshape(9, 81)
 
-    def qd(self, tau: np.ndarray, block=slice(None)) -> np.ndarray:
+    def qd(self, tau: np.ndarray, block: slice = slice(None)) -> np.ndarray:
         """Qd(tau) block, shape (k, n, n)."""
         tau = tau[:, None, None]
         b = (block, block)
@@ -338,7 +348,8 @@ def transition(F: np.ndarray, Qc: np.ndarray, tau: float) -> tuple[np.ndarray, n
     return series.phi(t)[0], series.qd(t)[0]
 
 
-def joseph_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray):
+def joseph_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, float]:
     """Kalman update of a zero-mean error state in Joseph form.
 
     Parameters
@@ -367,7 +378,7 @@ def joseph_update(P: np.ndarray, H: np.ndarray, R: np.ndarray, innovation: np.nd
     return dx, 0.5 * (P_new + P_new.T), nis
 
 
-def correct_state(state: InsState, dx_nav, earth) -> InsState:
+def correct_state(state: InsState, dx_nav: Vector, earth: EarthModel) -> InsState:
     """Remove an estimated navigation error ``dx_nav`` (9,) from an INS state (feedback).
 
     Position ``lat -= dN / (R_N + h)``, ``lon -= dE / ((R_E + h) cos lat)``, ``h -= dU``;
@@ -393,35 +404,37 @@ def correct_state(state: InsState, dx_nav, earth) -> InsState:
         r0 * q3 + r1 * q2 - r2 * q1 + r3 * q0,
     ])
     quat /= math.sqrt(float(quat @ quat))
-    return InsState(lat_new, lon_new, h - du, (v[0] - dve, v[1] - dvn, v[2] - dvu), quat, state.compensation)
+    return InsState(lat_new, lon_new, h - du, np.array((v[0] - dve, v[1] - dvn, v[2] - dvu)), quat, state.compensation)
 
 
-def compensate_increments(dtheta_sub, dv_sub, dtheta_r, dv_r, gyro_bias, accel_bias, nav_period_s: float):
+def compensate_increments(dtheta_sub: ArrayLike | None, dv_sub: ArrayLike | None, dtheta_r: ArrayLike | None,
+                          dv_r: ArrayLike | None, gyro_bias: ArrayLike, accel_bias: ArrayLike, nav_period_s: float
+                          ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """Remove constant biases (rad/s, m/s^2, body axes) from the IMU data of n steps.
 
     ``dtheta_r[:, r-1] -= b dt^r / r!`` (the r-fold integral of a constant over the
     step dt); ``dtheta_sub -= b dt / m`` for m sub-samples. Arrays may be None.
     Returns the four arrays (new arrays; inputs are not modified).
     """
-    out = []
-    for arr, bias in ((dtheta_sub, gyro_bias), (dv_sub, accel_bias)):
-        if arr is None:
+    out: list[np.ndarray | None] = []
+    for data, bias in ((dtheta_sub, gyro_bias), (dv_sub, accel_bias)):
+        if data is None:
             out.append(None)
         else:
-            arr = np.asarray(arr, dtype=float)
+            arr = np.asarray(data, dtype=float)
             out.append(arr - np.asarray(bias) * (nav_period_s / arr.shape[-2]))
-    for arr, bias in ((dtheta_r, gyro_bias), (dv_r, accel_bias)):
-        if arr is None:
+    for data, bias in ((dtheta_r, gyro_bias), (dv_r, accel_bias)):
+        if data is None:
             out.append(None)
         else:
-            arr = np.asarray(arr, dtype=float)
+            arr = np.asarray(data, dtype=float)
             orders = arr.shape[-2]
             kern = np.array([nav_period_s**r / math.factorial(r) for r in range(1, orders + 1)])
             out.append(arr - kern[:, None] * np.asarray(bias)[None, :])
     return out[0], out[1], out[2], out[3]
 
 
-def solution_rows(lat, lon, h, velocity_n, quat_nb) -> np.ndarray:
+def solution_rows(lat: ArrayLike, lon: ArrayLike, h: ArrayLike, velocity_n: ArrayLike, quat_nb: ArrayLike) -> np.ndarray:
     """(n, 9) rows ``[lat, lon, h, vE, vN, vU, heading, pitch, roll]`` of INS outputs.
 
     Heading, pitch and roll as :func:`navsim.rotations.hpr_from_mat_nb`, from the five
@@ -443,7 +456,7 @@ def solution_rows(lat, lon, h, velocity_n, quat_nb) -> np.ndarray:
     return out
 
 
-def state_from_prior(prior) -> InsState:
+def state_from_prior(prior: Prior) -> InsState:
     """The INS state of a :class:`navsim.simulator.Prior`."""
     quat = mat_to_quat(mat_nb_from_hpr(prior.heading, prior.pitch, prior.roll))
     return InsState(prior.lat, prior.lon, prior.h, np.asarray(prior.velocity_n, dtype=float), quat)

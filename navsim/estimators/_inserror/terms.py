@@ -6,12 +6,16 @@ bias compensation) and of one step (:class:`StepTerms`). Derivation:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...rotations import quat_from_rotvec
 from ...strapdown import ins as _ins
 from ...strapdown import onestep as _one
+from ...strapdown.ins import Method
+from ...strapdown.onestep import Vec
 from .model import cross3
 
 
@@ -40,7 +44,8 @@ class BodyTerms:
     def __len__(self) -> int:
         return len(self.phi)
 
-    def compensated(self, gyro_bias, accel_bias, start: int = 0, stop: int | None = None):
+    def compensated(self, gyro_bias: ArrayLike, accel_bias: ArrayLike, start: int = 0, stop: int | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
         """Terms of steps start:stop with constant biases removed, to first order in the bias.
 
         For a constant rate omega and force f over the step the exact terms are
@@ -78,8 +83,9 @@ class BodyTerms:
         return quat_from_rotvec(phi), dv_b, ds_b, dv - ba * T
 
 
-def body_terms(dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None, dt: float = 0.01, coning=None,
-               sculling=None, position=None) -> BodyTerms:
+def body_terms(dtheta_sub: np.ndarray | None = None, dv_sub: np.ndarray | None = None, dtheta_r: np.ndarray | None = None,
+               dv_r: np.ndarray | None = None, dt: float = 0.01, coning: Method = None, sculling: Method = None,
+               position: Method = None) -> BodyTerms:
     """The body-frame terms of :func:`navsim.strapdown.ins.integrate` for n steps.
 
     The same computation as the strapdown module's (registry methods chosen by
@@ -102,12 +108,12 @@ class StepTerms:
     :class:`BodyTerms` batch of one. ``dtheta1`` is the (1, 3) array view callers index.
     """
 
-    phi: tuple
-    dv_b: tuple
-    ds_b: tuple | None
+    phi: Vec
+    dv_b: Vec
+    ds_b: Vec | None
     rule: str | None
-    theta1: tuple
-    dv1: tuple
+    theta1: Vec
+    dv1: Vec
     dt: float
 
     def __len__(self) -> int:
@@ -118,7 +124,8 @@ class StepTerms:
         """(1, 3) first-order angle increment, rad (as :attr:`BodyTerms.dtheta1`)."""
         return np.array([self.theta1])
 
-    def compensated(self, gyro_bias, accel_bias):
+    def compensated(self, gyro_bias: Sequence[float], accel_bias: Sequence[float]
+                    ) -> tuple[tuple[float, float, float, float], Vec, Vec | None, Vec]:
         """:meth:`BodyTerms.compensated` of the step on floats (the same operations).
 
         Returns q(Phi) (4-tuple), dV_b, dS_b (or None), DV - b_a T (3-tuples).
