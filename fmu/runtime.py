@@ -736,6 +736,7 @@ class EstimatorRuntime(_RuntimeBase):
         self._at_step, self._at_t = self._at["time.step"], self._at["time.t_s"]
         self._reals, self._ints, self._bools = store.real, store.int, store.bool
         self._fast: tuple[float, int, float, float] | None = None  # see do_step
+        self._writer: Any = None  # _write_solution compiled (set at the first plant data)
         self._step_row: Any = None  # the estimator's row_stepping (set at the first plant data)
         self._meas_signals = [(s.measurement, store.slot(s.fmu_name)[1].start, s.dtype == "float64")
                               for s in MEASUREMENT_SIGNALS if s.present(self.dims)]
@@ -894,6 +895,7 @@ class EstimatorRuntime(_RuntimeBase):
             if not self.started:  # the prior came with (or before) the plant's first step
                 self._reset_estimator(k)
                 self._step_row = row_stepping(self.estimator)
+                self._writer = _solution_writer() if self._step_row is not None else None
                 self._view = _StoreView(self, k)
                 self.started = True
             self._process(c, k, c * self.timing.nav_period_s, self.tick + n)
@@ -967,6 +969,15 @@ class EstimatorRuntime(_RuntimeBase):
                    tick: int) -> None:
         """:meth:`_write_estimate` from a :data:`~navsim.estimators.base.StepRow`: ``row``
         (9,) is the solution block's [lat, lon, h, velocity_n (3), heading, pitch, roll]."""
+        processed = self.processed
+        writer = self._writer
+        if writer is not None and cov is not None:
+            try:
+                writer(self._reals, self._sol_real, t_s, row, cov, math.nan if nis is None else nis, self._out_int,
+                       processed, tick // self.nav_ticks - processed, 0 if nis is None else int(dof or 0))
+                return
+            except TypeError:  # not the compiled layout (float64, C order): the NumPy path from now on
+                self._writer = None
         real, o = self._reals, self._sol_real
         real[o] = t_s
         _copyto(self._out_row, row)
@@ -977,7 +988,7 @@ class EstimatorRuntime(_RuntimeBase):
             sigma = self._out_sigma
             _abs(self._out_diag, sigma)
             _sqrt(sigma, sigma)
-        processed, ints = self.processed, self._out_int
+        ints = self._out_int
         ints[0] = processed
         ints[1] = tick // self.nav_ticks - processed
         if nis is None:
@@ -1006,6 +1017,45 @@ class EstimatorRuntime(_RuntimeBase):
         self.store.int[self._sol_int:self._sol_int + 3] = (
             self.processed, tick // self.nav_ticks - self.processed,
             (int(est.nis_dof or 0) if nis is not None else 0))
+
+
+def _write_solution(real: np.ndarray, o: int, t_s: float, row: np.ndarray, cov: np.ndarray, nis: float,
+                    ints: np.ndarray, processed: int, lag: int, dof: int) -> None:
+    """:meth:`EstimatorRuntime._write_row`'s NumPy path in one call, element by element:
+    the solution block ``real[o:o + 101]`` = [t_s, row (9), sqrt(|diag cov|) (9), cov (81,
+    row-major), nis], ``ints[:3]`` = [step, lag, nis_dof]. Copies, ``abs`` and the correctly
+    rounded ``sqrt`` are the operations of that path: the same bits. Compiled by numba
+    (:func:`_solution_writer`)."""
+    real[o] = t_s
+    for i in range(9):
+        real[o + 1 + i] = row[i]
+        real[o + 10 + i] = math.sqrt(abs(cov[i, i]))
+        for j in range(9):
+            real[o + 19 + 9 * i + j] = cov[i, j]
+    real[o + 100] = nis
+    ints[0] = processed
+    ints[1] = lag
+    ints[2] = dof
+
+
+_WRITER: list = []
+
+
+def _solution_writer() -> Any:
+    """:func:`_write_solution` compiled by numba for float64 C-ordered rows and covariances
+    (what the bundled estimators' ``step_row`` returns; another layout raises TypeError and
+    the caller takes the NumPy path), or None without numba (extra ``fast``)."""
+    if not _WRITER:
+        from navsim.jit import available
+
+        if available():
+            import numba
+
+            sig = "void(float64[::1], int64, float64, float64[::1], float64[:, ::1], float64, int64[::1], int64, int64, int64)"
+            _WRITER.append(numba.njit(sig, cache=True, nogil=True)(_write_solution))
+        else:
+            _WRITER.append(None)
+    return _WRITER[0]
 
 
 class _StoreView:

@@ -117,3 +117,35 @@ def test_fast_path_equals_full_checks(fmi, request, tmp_path):
     for want in ("does not match the FMU's time", "spans 2 navigation step(s)", "skipped data", "repeated data",
                  "stale data", "time.t_s input"):
         assert any(want in m for m in seen), want
+
+
+def test_compiled_solution_write_equals_numpy_path(tmp_path, request):
+    """``_write_row`` through the compiled writer and through its NumPy path give the same
+    store, bit for bit (copies, ``abs`` and the correctly rounded ``sqrt``), for a
+    covariance with a negative and a negative-zero diagonal element and with and without
+    an update (NaN NIS, dof 0); a row of another layout falls back to the NumPy path."""
+    pytest.importorskip("numba")
+    from navsim.fmu import runtime
+
+    plant, fast, slow = _runtimes(tmp_path, request.getfixturevalue("plant2"), request.getfixturevalue("estimator2"), 2)
+    writer = runtime._solution_writer()
+    assert writer is not None
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(9, 9))
+    cov = a @ a.T
+    cov[3, 3], cov[7, 7] = -1e-18, -0.0
+    row = rng.normal(size=12)[:9]  # a view, as lc-ekf's row is
+    for nis, dof in ((None, None), (2.5, 6)):
+        fast.processed = slow.processed = 41
+        fast.nav_ticks = slow.nav_ticks = 1
+        fast._writer, slow._writer = writer, None
+        fast._write_row(row, cov, nis, dof, 0.41, 42)
+        slow._write_row(row, cov, nis, dof, 0.41, 42)
+        assert fast._writer is writer  # the compiled path was taken
+        for kind in ("real", "int"):
+            assert fast.store.arrays[kind].tobytes() == slow.store.arrays[kind].tobytes(), kind
+    strided = rng.normal(size=18)[::2]  # not the compiled layout
+    fast._write_row(strided, cov, None, None, 0.42, 43)
+    slow._write_row(strided, cov, None, None, 0.42, 43)
+    assert fast._writer is None  # the NumPy path from then on, which wrote the same values
+    assert fast.store.real.tobytes() == slow.store.real.tobytes()
