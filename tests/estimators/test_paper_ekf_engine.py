@@ -179,7 +179,7 @@ def test_packed_step_equals_step_one():
         fbuf[:], ibuf[:] = saved
         sol, cov9 = np.empty(9), np.empty((9, 9))
         if packed:
-            status = kernel.step_packed_dispatcher()(m.dtheta_r, m.dv_r, m.t, m.step, fbuf, ibuf, sol, cov9)
+            status = kernel.step_packed_dispatcher()(m.dtheta_r, m.dv_r, m.t, m.step, False, fbuf, ibuf, sol, cov9)
         else:
             status = kernel.step_one_compiled(m.dtheta_r, m.dv_r, m.t, m.step, state, cov, c, ic, breaks, lam_c, h_c,
                                               H, flat, h_sup, bar_idx, bar_col, est._lvec, est._dt_pow, est._kwork,
@@ -189,3 +189,29 @@ def test_packed_step_equals_step_one():
     for a, b in zip(*out):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(out[0][2], saved[0])  # the step moved the state held in the buffer
+
+
+@needs_numba
+@pytest.mark.parametrize("case", ["faithful-cov-0.1s", "extended-wgs84-spline-biases-clock"])
+def test_step_row_at_epochs_equals_step(case):
+    """step_row's epoch path (the compiled propagation, then the update (16) and the outputs
+    by the reference code, PaperEkf._row_epoch) gives step's numbers (_step_general: the
+    same operations on a one-step batch) bit for bit, at the epochs and after them."""
+    make_scenario, options = CASES[case]
+    sim = Simulator(make_scenario())
+    start = sim.reset(2)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    ms = list(measurements(sim.advance(round(8.0 / ctx.nav_period_s)), prn, ctx.nav_period_s))
+    a, b = PaperEkf(engine="compiled", **options), PaperEkf(engine="compiled", **options)
+    a.reset(ctx, start.prior)
+    b.reset(ctx, start.prior)
+    n_epoch = 0
+    for m in ms:
+        e, r = a.step(m), b.step_row(m)
+        np.testing.assert_array_equal(r[0], e.as_action())
+        np.testing.assert_array_equal(r[1], e.covariance)
+        assert (r[2], r[3]) == (e.nis, e.nis_dof)
+        n_epoch += r[2] is not None
+    assert n_epoch >= 5  # 8 s at 1 Hz, 2 s of outage
+    np.testing.assert_array_equal(a._k_arrays()[0], b._k_arrays()[0])

@@ -1381,10 +1381,43 @@ class PaperEkf(NoiseScalable):
         fbuf, ibuf = self._kpack[:2]
         status = step_one(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
                           np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
-                          int(measurement.step), fbuf, ibuf, sol, cov9)
+                          int(measurement.step), False, fbuf, ibuf, sol, cov9)
         if status != _kernel.STATUS_DONE:
             return None
         return sol, cov9
+
+    def _row_epoch(self, measurement: Measurement) -> StepRow | None:
+        """The step-wise path of the compiled engine for a step that ends at a GNSS epoch: the
+        propagation by the compiled :func:`~navsim.estimators.paper_ekf.kernel.step_core`, then
+        the update (16) and the outputs by the code of :meth:`_run_compiled` for a one-step
+        batch (:meth:`_reference_step`, :meth:`_outputs`), so the numbers of
+        :meth:`_step_general`, without its array preparation and :class:`Estimate`. None when
+        the step needs the general path (sub-steps, a failure), the state then unchanged."""
+        if self._kstate is None:
+            self._k_arrays()
+        step_one = self._kstep_one
+        if step_one is None:
+            step_one = self._kstep_one = _kernel.step_packed_dispatcher()
+        fbuf, ibuf = self._kpack[:2]
+        dtheta_r = np.ascontiguousarray(measurement.dtheta_r, dtype=float)
+        t = float(measurement.t)
+        status = step_one(dtheta_r, np.ascontiguousarray(measurement.dv_r, dtype=float), t, int(measurement.step),
+                          True, fbuf, ibuf, np.empty(9), np.empty((9, 9)))
+        if status != _kernel.STATUS_EPOCH:
+            return None
+        ns = self.n_states
+        o = _kernel.input_offset(ns)
+        row = self._kwork[o:o + 21].tolist()
+        self._k_release()
+        out_y = np.full((1, ns), np.nan)
+        out_p = np.full((1, ns, ns), np.nan)
+        nis = np.full(1, np.nan)
+        dof = np.zeros(1, dtype=int)
+        self._reference_step(0, row, t, int(measurement.step), dtheta_r[None], None, measurement.gnss, False,
+                             out_y, out_p, nis, dof)
+        sol, cov = self._outputs(out_y, out_p, np.array([t]))
+        return (sol[0], cov[0], None if math.isnan(nis[0]) else float(nis[0]),
+                None if dof[0] == 0 else int(dof[0]))
 
     def _step_compiled(self, measurement: Measurement):
         """:meth:`_row_compiled` as an :class:`Estimate` (None: the general path)."""
@@ -1415,10 +1448,15 @@ class PaperEkf(NoiseScalable):
         :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers; a step of
         the compiled path builds no :class:`Estimate` and no ``extra``."""
         self._require()
-        if self._kargs is not None and measurement.gnss is None and not self._diverged:
-            done = self._row_compiled(measurement)
-            if done is not None:
-                return done[0], done[1], None, None
+        if self._kargs is not None and not self._diverged:
+            if measurement.gnss is None:
+                done = self._row_compiled(measurement)
+                if done is not None:
+                    return done[0], done[1], None, None
+            else:
+                at_epoch = self._row_epoch(measurement)
+                if at_epoch is not None:
+                    return at_epoch
         return row_of(self._step_general(measurement))
 
     def _step_general(self, measurement: Measurement) -> Estimate:

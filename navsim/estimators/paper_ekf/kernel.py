@@ -19,8 +19,10 @@ scalars, no Python objects); :func:`advance` is the compiled driver (numba, opti
 source uncompiled, slowly (tests; ``advance_uncompiled`` keeps it after compilation).
 :func:`step_one` is one navigation step without an epoch (the step-wise path: inputs,
 :func:`advance_py`, outputs); :func:`step_packed` is the same call with the constants, the
-work array and the state taken from the two buffers of :func:`pack` (8 arguments instead of
-21: numba's dispatcher checks the type of every argument of every call).
+work array and the state taken from the two buffers of :func:`pack` (9 arguments instead of
+21: numba's dispatcher checks the type of every argument of every call); with ``epoch`` it
+also propagates a step that ends at a GNSS epoch and stops before the update (16)
+(:func:`step_core`).
 
 :func:`advance_py` advances over a run of navigation steps and stops, handing control back
 to the caller, at (a) a step whose start-up stiffness needs adaptive sub-steps (the gain
@@ -803,6 +805,21 @@ def step_one(dtheta_r, dv_r, t, step, state, cov, c, ic, breaks, lam_c, h_c, H, 
     outputs. ``state`` = [Y, K, P, P_start] flat (2n + 2n^2), ``work`` as in advance_py.
     Returns the status of advance_py; outputs (sol (9), cov9 (9, 9)) only when it is
     STATUS_DONE."""
+    return step_core(dtheta_r, dv_r, t, step, False, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup,
+                     bar_idx, bar_col, lvec, dt_pow, work, sol, cov9)
+
+
+def input_offset(n):
+    """Start in ``work`` of the stage inputs (21,) of the step :func:`step_core` prepared."""
+    return 64 + 3 * n + 12 * n * n
+
+
+def step_core(dtheta_r, dv_r, t, step, epoch, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx,
+              bar_col, lvec, dt_pow, work, sol, cov9):
+    """:func:`step_one` for a step that ends at a GNSS epoch too (``epoch`` True): then
+    advance_py stops with STATUS_EPOCH after the propagation (the state advanced, no outputs),
+    and the caller does the update (16) and the outputs; the stage inputs of the step stay in
+    ``work`` from :func:`input_offset` (21 floats)."""
     n = H.shape[0] // 2
     nn = n * n
     Y = state[0:n]
@@ -824,6 +841,7 @@ def step_one(dtheta_r, dv_r, t, step, state, cov, c, ic, breaks, lam_c, h_c, H, 
     M = work[o + 18:o + 27].reshape((3, 3))
     steps = np.full(1, step)
     is_epoch = np.zeros(1, dtype=np.bool_)
+    is_epoch[0] = epoch
     prepare_row(dtheta_r, dv_r, lvec, dt_pow, inp[0])
     _, status = advance_py(0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, breaks, lam_c, h_c,
                            H, flat, h_sup, bar_idx, bar_col, out_y, out_p, work)
@@ -875,8 +893,8 @@ def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_p
                         dt_pow_v, work_v, state_v, cov_v)
 
 
-def step_packed(dtheta_r, dv_r, t, step, fbuf, ibuf, sol, cov9):
-    """:func:`step_one` with its constants, work array and state taken from the buffers of
+def step_packed(dtheta_r, dv_r, t, step, epoch, fbuf, ibuf, sol, cov9):
+    """:func:`step_core` with its constants, work array and state taken from the buffers of
     :func:`pack` (few arguments: the compiled dispatcher checks the type of each argument
     on every call). The same function on the same arrays: the same numbers."""
     n, R, nb, order = ibuf[P_N], ibuf[P_R], ibuf[P_NB], ibuf[P_ORDER]
@@ -891,7 +909,7 @@ def step_packed(dtheta_r, dv_r, t, step, fbuf, ibuf, sol, cov9):
     dt_pow = fbuf[f[6]:f[7]]
     work = fbuf[f[7]:f[8]]
     state = fbuf[f[8]:f[9]]
-    return step_one(dtheta_r, dv_r, t, step, state, ibuf[i[5]:i[6]], c, ibuf[i[0]:i[1]], breaks, lam_c, h_c, H,
+    return step_core(dtheta_r, dv_r, t, step, epoch, state, ibuf[i[5]:i[6]], c, ibuf[i[0]:i[1]], breaks, lam_c, h_c, H,
                     ibuf[i[1]:i[2]], ibuf[i[2]:i[3]], ibuf[i[3]:i[4]], ibuf[i[4]:i[5]], lvec, dt_pow, work, sol,
                     cov9)
 
@@ -906,7 +924,7 @@ def _compile():
     g = globals()
     for name in ("_piece", "track_scalars", "track_scalars3", "_horner2", "_horner3", "stage", "_kphi", "fused",
                  "_stage_cstep", "_fill_h", "_gain", "_quad", "riccati_rk4", "_rows_ok", "state_rk4", "advance_py",
-                 "prepare_row", "_ek", "_clip1", "output_row", "step_one"):
+                 "prepare_row", "_ek", "_clip1", "output_row", "step_core", "step_one"):
         g[name] = jit(g[name])
     return g["advance_py"], jit(outputs), g["step_one"], jit(step_packed)
 
