@@ -43,6 +43,7 @@ Option checks shared by the estimators' option classes (one wording for every fi
   the context provides, ``"none"`` leaves the aid out);
 * :func:`check_positive_finite`: a real number ``0 < x < inf`` (periods, sigmas, factors);
 * :func:`check_optional_positive_finite`: the same, or None (a default taken from the context);
+* :func:`check_nonnegative_finite`: a real number ``0 <= x < inf`` (power spectral densities);
 * :func:`check_time_constant`: the correlation time ``tau`` of a first-order Gauss-Markov
   process, ``0 < tau <= inf`` (``inf``: the random constant, ``phi = exp(-dt / tau) = 1``);
 * :func:`check_integer`: a whole number ``>= minimum`` (counts: satellites, epochs);
@@ -70,7 +71,7 @@ if TYPE_CHECKING:  # type hints only
 __all__ = ["validate_scenario", "check_seed", "check_steps", "check_episode_memory", "machine_memory_bytes",
            "truth_block_bytes", "BYTES_PER_IMU_SAMPLE_NODE", "EPISODE_BYTES_PER_STEP", "check_choice",
            "check_auto_none", "check_positive_finite", "check_optional_positive_finite", "check_time_constant",
-           "check_integer", "check_probability"]
+           "check_integer", "check_probability", "check_nonnegative_finite"]
 
 BYTES_PER_IMU_SAMPLE_NODE = 400
 """Working memory of the truth generator per IMU sample and quadrature node, bytes (an
@@ -252,6 +253,18 @@ def check_optional_positive_finite(field: str, value: object,
     if value is None:
         return None
     return check_positive_finite(field, value, expected)
+
+
+def check_nonnegative_finite(field: str, value: object, expected: str = "a non-negative finite number") -> float:
+    """``float(value)`` for a real number with ``0 <= value < inf``, else :class:`ConfigError`.
+
+    >>> check_nonnegative_finite("accel_psd", 0)
+    0.0
+    """
+    number = _real(value)
+    if number is None or not (0.0 <= number < math.inf):
+        raise ConfigError(field, expected, value)
+    return number
 
 
 def check_time_constant(field: str, value: object,

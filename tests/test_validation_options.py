@@ -63,6 +63,10 @@ BAD_OPTIONS = [
     ("lc-ekf", "fix_error_tau_s", 60.0), ("lc-ekf", "covariance_period_s", math.inf), ("lc-ekf", "odometer", "yes"),
     ("tc-ekf", "ionosphere_tau_s", True), ("tc-ekf", "troposphere_tau_s", "3600"), ("tc-ekf", "divergence_epochs", 0),
     ("tc-ukf", "baro_period_s", math.nan), ("tc-ukf", "pseudorange_sigma_m", -1.0), ("tc-ukf", "clock", None),
+    ("gnss-ls", "min_satellites", True), ("gnss-ls", "accel_psd", math.inf), ("gnss-cv", "accel_psd", True),
+    ("gnss-cv", "measurement_scale", "2"), ("ins-only", "covariance_period_s", True),
+    ("full-state-ekf", "cov_step_s", math.nan), ("full-state-ekf", "input_model", "linear"),
+    ("full-state-ekf", "lever_arm", True),
 ]
 
 

@@ -80,6 +80,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
+from ..validation import check_auto_none, check_choice, check_optional_positive_finite
 from .base import Context, Estimate, EstimateBatch, GnssObservation, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .paper_ekf import input_polynomial_matrix
 
@@ -124,12 +125,9 @@ class FullStateEkf(NoiseScalable):
 
     def __init__(self, cov_step_s: float | None = None, input_model: str = "polynomial",
                  lever_arm: str = "auto") -> None:
-        if cov_step_s is not None and not (isinstance(cov_step_s, (int, float)) and cov_step_s > 0):
-            raise ConfigError("cov_step_s", "None or a positive step (s)", cov_step_s)
-        if input_model not in ("polynomial", "mean"):
-            raise ConfigError("input_model", "'polynomial' or 'mean'", input_model)
-        if lever_arm not in ("auto", "none"):
-            raise ConfigError("lever_arm", "'auto' or 'none'", lever_arm)
+        check_optional_positive_finite("cov_step_s", cov_step_s, "None or a positive step (s)")
+        check_choice("input_model", input_model, ("polynomial", "mean"))
+        check_auto_none("lever_arm", lever_arm)
         self.cov_step_s = cov_step_s
         self.input_model = input_model
         self.lever_arm = lever_arm

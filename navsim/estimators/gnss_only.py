@@ -40,6 +40,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
+from ..validation import check_integer, check_nonnegative_finite, check_positive_finite
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .loosely import gnss_fixes
 
@@ -57,9 +58,7 @@ _NAN_ATT = np.full(3, np.nan)
 
 
 def _check_min_satellites(value: float) -> int:
-    if int(value) != value or value < 4:
-        raise ConfigError("min_satellites", "an integer >= 4", value)
-    return int(value)
+    return check_integer("min_satellites", value, 4)
 
 
 def _covariance9(p_pos_n: np.ndarray, p_vel_n: np.ndarray, p_cross_n: np.ndarray | None = None) -> np.ndarray:
@@ -140,12 +139,9 @@ class GnssLeastSquares(NoiseScalable):
     def __init__(self, extrapolate: bool = True, min_satellites: int = 4, measurement_scale: float = 1.0,
                  accel_psd: float = 0.01) -> None:
         self.extrapolate = bool(extrapolate)
-        if not (accel_psd >= 0.0 and math.isfinite(accel_psd)):
-            raise ConfigError("accel_psd", "a PSD >= 0, m^2/s^3", accel_psd)
-        self.accel_psd = float(accel_psd)
+        self.accel_psd = check_nonnegative_finite("accel_psd", accel_psd, "a non-negative finite PSD, m^2/s^3")
         self.min_satellites = _check_min_satellites(min_satellites)
-        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
-            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
+        check_positive_finite("measurement_scale", measurement_scale, "a positive finite factor")
         self.measurement_scale = float(measurement_scale)
         self.context: Context | None = None
 
@@ -226,10 +222,8 @@ class GnssConstantVelocity(NoiseScalable):
 
     def __init__(self, accel_psd: float = 0.1, use_velocity: bool = True, min_satellites: int = 4,
                  measurement_scale: float = 1.0) -> None:
-        if not (accel_psd >= 0.0 and math.isfinite(accel_psd)):
-            raise ConfigError("accel_psd", "a non-negative finite PSD, m^2/s^3", accel_psd)
-        if not (measurement_scale > 0.0 and math.isfinite(measurement_scale)):
-            raise ConfigError("measurement_scale", "a positive finite factor", measurement_scale)
+        check_nonnegative_finite("accel_psd", accel_psd, "a non-negative finite PSD, m^2/s^3")
+        check_positive_finite("measurement_scale", measurement_scale, "a positive finite factor")
         self.accel_psd = float(accel_psd)
         self.use_velocity = bool(use_velocity)
         self.min_satellites = _check_min_satellites(min_satellites)

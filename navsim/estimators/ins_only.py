@@ -21,11 +21,10 @@ References
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..errors import ConfigError
+from ..validation import check_positive_finite
 from ._inserror import ErrorStateIns, ImuNoise
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 
@@ -52,8 +51,7 @@ class InsOnly(NoiseScalable):
 
     def __init__(self, covariance_period_s: float = 1.0, noise_scale: float = 1.0, bias_scale: float = 1.0,
                  coning: str | None = None, sculling: str | None = None, position: str | None = None) -> None:
-        if not (covariance_period_s > 0.0 and math.isfinite(covariance_period_s)):
-            raise ConfigError("covariance_period_s", "a positive finite time, s", covariance_period_s)
+        check_positive_finite("covariance_period_s", covariance_period_s, "a positive finite time, s")
         self.covariance_period_s = float(covariance_period_s)
         self.noise_scale = noise_scale
         self.bias_scale = bias_scale
