@@ -1029,7 +1029,11 @@ class AlongTrackFilter(NoiseScalable):
         boundary = obs is not None or (step + 1) % self.cov_steps == 0 or odo_due
         if not boundary:
             return None, nis, dof
-        self.P = self._covariance_at(np.array([self.k_in]))[0]
+        block = self._P_block  # P(k) of the interval computed ahead (_interval_covariance), as step_batch's block
+        if block is not None and 0 <= self.k_in - block[0] < len(block[1]):
+            self.P = block[1][self.k_in - block[0]]
+        else:
+            self.P = self._covariance_at(np.array([self.k_in]))[0]
         if obs is not None:
             nis, dof = self._update(obs)
             self._check_health()
