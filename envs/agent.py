@@ -51,7 +51,10 @@ class EstimateAction(np.ndarray):
         return out
 
     def __array_finalize__(self, obj):
-        self.extras = getattr(obj, "extras", (None, None, None, None)) if obj is not None else (None, None, None, None)
+        # a view or copy of an EstimateAction keeps its extras; anything else has the
+        # class default (no instance attribute set: the cheap case of act's per-step view)
+        if isinstance(obj, EstimateAction):
+            self.extras = obj.extras
 
 
 def resolve_estimator(estimator: Any, options: dict | None = None) -> tuple[str, Any]:
@@ -185,7 +188,7 @@ class _StepView:
 
     def fill(self, obs: dict, step: int) -> "_StepView":
         self.step = step
-        self.t = float(obs["t"][0])
+        self.t = obs["t"].item()  # float(obs["t"][0]): the same Python float
         self.dtheta_r = obs["dtheta_r"].reshape(-1, 3)
         self.dv_r = obs["dv_r"].reshape(-1, 3)
         self.dtheta_sub = obs["dtheta_sub"].reshape(-1, 3)

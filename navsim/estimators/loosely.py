@@ -374,6 +374,7 @@ class LooselyCoupledEkf(NoiseScalable):
         self.divergence_epochs = int(divergence_epochs)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
         self.engine: ErrorStateIns | None = None
+        self._no_aiding = False  # set by reset: neither odometer nor barometer updates
         self.diverged = False
         self.last_update: dict = {}
 
@@ -442,6 +443,7 @@ class LooselyCoupledEkf(NoiseScalable):
         arm = getattr(context.gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if self.lever_arm == "auto" else (0.0, 0.0, 0.0)
         self.lever_arm_b = np.array(arm, dtype=float)
         self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
+        self._no_aiding = self._odo is None and self._baro is None
 
     def _ins_only_step(self, m: Measurement) -> bool:
         """True when step ``m`` makes no update (no GNSS epoch, no odometer or barometer update due)."""
@@ -476,10 +478,17 @@ class LooselyCoupledEkf(NoiseScalable):
         :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers, and no
         :class:`Estimate` built for a step without an update."""
         eng = self.engine
-        if eng is not None and self._ins_only_step(measurement):
-            row, cov = self._ins_step(measurement, eng)
-            return row, cov, None, None
-        return row_of(self.step(measurement))
+        m = measurement
+        if eng is not None and m.gnss is None:
+            if self._no_aiding:  # no odometer, no barometer: every step without an epoch is INS only
+                row, cov = eng.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+                if eng.diverged:
+                    self.diverged = True
+                return row, cov, None, None
+            if self._ins_only_step(m):
+                row, cov = self._ins_step(m, eng)
+                return row, cov, None, None
+        return row_of(self.step(m))
 
     def step(self, measurement: Measurement) -> Estimate:
         """One navigation step: the batch path on a batch of one at update steps (GNSS epoch,

@@ -25,7 +25,8 @@ from navsim.jit import available
 if TYPE_CHECKING:  # type hints only
     from navsim.earth import EarthModel
 
-__all__ = ["available", "earth_constants", "kernel", "one_step", "run", "step_constants", "step_kernel"]
+__all__ = ["available", "earth_constants", "kernel", "one_step", "row_kernel", "run", "set_layout", "step_constants",
+           "step_kernel", "step_row", "work_array"]
 
 
 def earth_constants(earth: EarthModel) -> np.ndarray:
@@ -285,9 +286,75 @@ def one_step(c: np.ndarray, k: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarra
     out[11] = f2_ + q0 * u2 + (q1 * u1 - q2 * u0)
 
 
+# offsets into the work array of step_row (work_array): Earth constants (10), step constants
+# (17), dt, gyro bias (3), accelerometer bias (3), state (13), specific-force sum (3), the
+# input layout the array was set up for (5: rows of dtheta_r, dv_r, dtheta_sub, dv_sub, and
+# 1.0 with sub-sample increments, 0.0 without)
+W_EARTH, W_STEP, W_DT, W_GYRO, W_ACCEL, W_STATE, W_FSUM, W_LAYOUT, W_SIZE = 0, 10, 27, 28, 31, 34, 47, 50, 55
+
+
+def work_array(earth: EarthModel, dt: float) -> np.ndarray:
+    """The work array of :func:`step_row` for ``earth`` and step ``dt``: constants filled,
+    biases, state and specific-force sum zero, no input layout (every call mismatches
+    until :func:`set_layout`)."""
+    w = np.zeros(W_SIZE)
+    w[W_EARTH:W_STEP] = earth_constants(earth)
+    w[W_STEP:W_DT] = step_constants(dt)
+    w[W_DT] = float(dt)
+    w[W_LAYOUT:W_SIZE] = -1.0
+    return w
+
+
+def set_layout(w: np.ndarray, dtheta_r_rows: int, dv_r_rows: int, dtheta_sub_rows: int | None,
+               dv_sub_rows: int | None) -> None:
+    """Record in ``w`` the input layout :func:`step_row` accepts (None: no sub-sample increments)."""
+    sub = dtheta_sub_rows is not None and dv_sub_rows is not None
+    w[W_LAYOUT:W_SIZE] = (dtheta_r_rows, dv_r_rows, dtheta_sub_rows if sub else 0, dv_sub_rows if sub else 0,
+                          1.0 if sub else 0.0)
+
+
+def step_row(w: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarray, dtheta_sub: np.ndarray, dv_sub: np.ndarray,
+             use_sub: bool, blocks: np.ndarray, j: int, row: np.ndarray, cov: np.ndarray) -> int:
+    """One step of the error-state INS with everything but the increments in one array.
+
+    :func:`one_step` on the constants, biases and state held in ``w``
+    (:func:`work_array`; the state advanced in place), then the bookkeeping of
+    ``ErrorStateIns.advance_row`` that needs no Python object: the solution row into
+    ``row`` (9,), the specific-force increment added to the sum ``w[W_FSUM:W_FSUM + 3]``
+    component by component (``s + f``, as the float path adds), and the navigation block
+    ``blocks[j]`` (9, 9) of the covariance copied into ``cov``. ``dtheta_sub``, ``dv_sub``
+    are read only when ``use_sub``.
+
+    Returns 1 without touching anything when the input layout is not the one recorded in
+    ``w`` (:func:`set_layout`: the caller then takes its general path), 2 when the new
+    position and velocity sum to a non-finite number (the caller validates the state),
+    else 0.
+    """
+    if (dtheta_r.shape[0] != w[W_LAYOUT] or dv_r.shape[0] != w[W_LAYOUT + 1] or dtheta_r.shape[1] != 3
+            or dv_r.shape[1] != 3 or (1.0 if use_sub else 0.0) != w[W_LAYOUT + 4]):
+        return 1
+    if use_sub and (dtheta_sub.shape[0] != w[W_LAYOUT + 2] or dv_sub.shape[0] != w[W_LAYOUT + 3]
+                    or dtheta_sub.shape[1] != 3 or dv_sub.shape[1] != 3):
+        return 1
+    out = np.empty(12)
+    _one_step(w[W_EARTH:W_STEP], w[W_STEP:W_DT], dtheta_r, dv_r, dtheta_sub, dv_sub, use_sub, w[W_GYRO:W_ACCEL],
+              w[W_ACCEL:W_STATE], w[W_STATE:W_FSUM], w[W_DT], out)
+    for i in range(9):
+        row[i] = out[i]
+    w[W_FSUM] = w[W_FSUM] + out[9]
+    w[W_FSUM + 1] = w[W_FSUM + 1] + out[10]
+    w[W_FSUM + 2] = w[W_FSUM + 2] + out[11]
+    for a in range(9):
+        for b in range(9):
+            cov[a, b] = blocks[j, a, b]
+    return 0 if math.isfinite(out[0] + out[1] + out[2] + out[3] + out[4] + out[5]) else 2
+
+
 _run = run
+_one_step = one_step
 _compiled: list[Callable[..., Any]] = []
 _compiled_step: list[Callable[..., Any]] = []
+_compiled_row: list[Callable[..., Any]] = []
 
 
 def kernel() -> Callable[..., None] | None:
@@ -311,6 +378,20 @@ def step_kernel() -> Callable[..., None] | None:
     if not _compiled_step:
         import numba
 
+        global _one_step
         kernel()
-        _compiled_step.append(numba.njit(cache=True, nogil=True)(one_step))
+        _one_step = numba.njit(cache=True, nogil=True)(one_step)
+        _compiled_step.append(_one_step)
     return _compiled_step[0]
+
+
+def row_kernel() -> Callable[..., int] | None:
+    """:func:`step_row` compiled by numba (calling the compiled :func:`one_step`), or None without numba."""
+    if not available():
+        return None
+    if not _compiled_row:
+        import numba
+
+        step_kernel()
+        _compiled_row.append(numba.njit(cache=True, nogil=True)(step_row))
+    return _compiled_row[0]

@@ -81,13 +81,18 @@ class ErrorStateIns:
             raise ConfigError("interval_steps", "a positive integer number of navigation steps", interval_steps)
         self.earth = context.earth
         self.dt = float(context.nav_period_s)
+        # the work array of the compiled one-step path (navsim.strapdown.compiled.step_row):
+        # constants, biases, state, the specific-force sum of the interval (kept here on
+        # every path) and the input layout found fit
+        self._w = _compiled.work_array(self.earth, self.dt)
+        self._in_w = False  # the state lives in the work array (the compiled path's last step)
+        self._row_kernel = None  # the compiled step_row once an input layout is found fit
+        self._dummy = np.zeros((1, 3))  # the sub-sample arguments of a step without them
         self.noise = noise
         self.interval_steps = int(interval_steps)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
         self._resolved: dict = {}  # input shapes -> resolved (coning, sculling, position)
-        self._compiled_key = None  # the input shapes advance_step found fit for the compiled step
-        self._kernel = None  # (compiled one-step kernel, Earth constants, step constants, dummy), on first use
-        self._vec = None  # (13,) state array of the compiled one-step path, when it holds the state
+        self._compiled_key = None  # the input shapes advance_row found fit for the compiled step
         self.estimate_biases = bool(estimate_biases)
         self.Qc = noise_density(noise)
         self.state = state_from_prior(prior)
@@ -118,14 +123,54 @@ class ErrorStateIns:
     def state(self, value: InsState) -> None:
         self._state = value
         self._flat = None
-        self._vec = None
+        self._in_w = False
+
+    @property
+    def _vec(self) -> np.ndarray | None:
+        """The (13,) state of the compiled path, (lat, lon, h, k_lat, k_lon, k_h, vE, vN, vU,
+        q0..q3), a view of its work array, when it holds the state (else None)."""
+        return self._w[_compiled.W_STATE:_compiled.W_FSUM] if self._in_w else None
+
+    @_vec.setter
+    def _vec(self, value: None) -> None:  # only None: the state no longer lives in the work array
+        self._in_w = False
+
+    @property
+    def gyro_bias(self) -> np.ndarray:
+        """Gyro bias estimate (3,), rad/s (set by assignment: the compiled path copies it on the next step)."""
+        return self._gyro_bias
+
+    @gyro_bias.setter
+    def gyro_bias(self, value: np.ndarray) -> None:
+        self._gyro_bias = value
+        self._bias_due = True
+
+    @property
+    def accel_bias(self) -> np.ndarray:
+        """Accelerometer bias estimate (3,), m/s^2 (set by assignment, as :attr:`gyro_bias`)."""
+        return self._accel_bias
+
+    @accel_bias.setter
+    def accel_bias(self, value: np.ndarray) -> None:
+        self._accel_bias = value
+        self._bias_due = True
+
+    @property
+    def _f_sum(self) -> list:
+        """Sum of the specific-force increments (ENU, m/s) of the current interval, as
+        floats; it lives in the work array, where the compiled path adds to it."""
+        return self._w[_compiled.W_FSUM:_compiled.W_LAYOUT].tolist()
+
+    @_f_sum.setter
+    def _f_sum(self, value) -> None:
+        self._w[_compiled.W_FSUM:_compiled.W_LAYOUT] = value
 
     def _floats(self) -> tuple:
         """The state as Python floats: (lat, lon, h, velocity (3,), quat (4,), compensation)."""
         if self._flat is None:
             st = self._state
-            if st is None:  # the compiled one-step path holds the state in its (13,) array
-                v = self._vec.tolist()
+            if st is None:  # the compiled one-step path holds the state in its work array
+                v = self._w[_compiled.W_STATE:_compiled.W_FSUM].tolist()
                 self._flat = (v[0], v[1], v[2], v[6:9], v[9:13], (v[3], v[4], v[5]))
             else:
                 self._flat = (st.lat, st.lon, st.h, st.velocity_n.tolist(), st.quat_nb.tolist(), st.compensation)
@@ -237,54 +282,71 @@ class ErrorStateIns:
 
         With numba and the methods of :data:`navsim.strapdown.onestep.ONE_STEP_METHODS`
         (the default with multiple integrals of order >= 4) the whole step (strapdown terms,
-        bias removal, the INS step, the solution row and the specific force) is one
-        compiled call, :func:`navsim.strapdown.compiled.one_step`: the operations of the
-        float path in the same order, so the same numbers; otherwise the float path
-        (:meth:`advance_body` of :meth:`prepare_step`).
+        bias removal, the INS step, the solution row, the specific-force sum and the copy
+        of the covariance block) is one compiled call,
+        :func:`navsim.strapdown.compiled.step_row` (around
+        :func:`~navsim.strapdown.compiled.one_step`) on the engine's work array, which
+        holds the constants, the biases, the state and the specific-force sum: the
+        operations of the float path in the same order, so the same numbers. The first
+        step of an input layout (the shapes of the four arrays) and every step of a layout
+        without that form take the float path (:meth:`advance_body` of
+        :meth:`prepare_step`).
         """
+        kern = self._row_kernel
+        if kern is not None:  # a layout was found fit: step_row checks that this step has it
+            if self._pending is not None:
+                self._start_interval(self._pending)
+            w = self._w
+            if self._bias_due:
+                w[_compiled.W_GYRO:_compiled.W_ACCEL] = self._gyro_bias
+                w[_compiled.W_ACCEL:_compiled.W_STATE] = self._accel_bias
+                self._bias_due = False
+            if not self._in_w:
+                lat, lon, h, velocity, quat, compensation = self._floats()
+                w[_compiled.W_STATE:_compiled.W_FSUM] = (lat, lon, h, *compensation, *velocity, *quat)
+                self._in_w = True
+            blocks = self._nav_block
+            if blocks is None:
+                blocks = self._nav_blocks()
+            row = np.empty(9)
+            cov = np.empty((9, 9))
+            if dtheta_sub is not None and dv_sub is not None:
+                status = kern(w, dtheta_r, dv_r, dtheta_sub, dv_sub, True, blocks, self._j, row, cov)
+            elif dtheta_sub is None and dv_sub is None:
+                status = kern(w, dtheta_r, dv_r, self._dummy, self._dummy, False, blocks, self._j, row, cov)
+            else:
+                status = 1
+            if status != 1:
+                # the state now lives in the work array: the floats and the InsState are built when read
+                self._flat = None
+                self._state = None
+                if status == 2:  # position and velocity not finite (or a finite sum that overflowed)
+                    self._floats()
+                    self._in_w = False
+                    self.state  # noqa: B018  (validates: the error of the array path)
+                self._f_count += 1
+                j = self._j = self._j + 1
+                if j == self.interval_steps:
+                    self._pending = self._full_covariance(j)
+                self.steps += 1
+                self._after_steps(1)
+                return row, cov
         key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
                dtheta_r.shape, dv_r.shape)
-        if key != self._compiled_key:  # the choice of path, made once per input layout
-            methods = self._resolved.get(key)
-            if (methods is None or (dtheta_sub is None) != (dv_sub is None)
-                    or tuple(methods) not in _one.ONE_STEP_METHODS or key[2][0] < 4 or key[3][0] < 4
-                    or not _compiled.available()):
-                rows, cov = self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
-                return rows[0], cov[0]
-            self._compiled_key = key
-        if self._pending is not None:
-            self._start_interval(self._pending)
-        kern = self._kernel
-        if kern is None:
-            kern = self._kernel = (_compiled.step_kernel(), _compiled.earth_constants(self.earth),
-                                   _compiled.step_constants(self.dt), np.zeros((1, 3)))
-        vec = self._vec
-        if vec is None:
-            lat, lon, h, velocity, quat, compensation = self._floats()
-            vec = self._vec = np.array([lat, lon, h, *compensation, *velocity, *quat], dtype=float)
-        out = np.empty(12)
-        if dtheta_sub is not None:
-            kern[0](kern[1], kern[2], dtheta_r, dv_r, dtheta_sub, dv_sub, True, self.gyro_bias, self.accel_bias, vec,
-                    self.dt, out)
-        else:
-            kern[0](kern[1], kern[2], dtheta_r, dv_r, kern[3], kern[3], False, self.gyro_bias, self.accel_bias, vec,
-                    self.dt, out)
-        # the state now lives in vec (13,): the floats and the InsState are built when read
-        self._flat = None
-        self._state = None
-        f = out.tolist()  # out[0:6] are the state's position and velocity
-        # position and velocity finite: their sum is (a sum of finite values that overflows
-        # only takes the validation below, which then passes)
-        if not math.isfinite(f[0] + f[1] + f[2] + f[3] + f[4] + f[5]):
-            self._floats()
-            self._vec = None
-            self.state  # noqa: B018  (validates: the error of the array path)
-        fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
-        self._f_sum = [fs[0] + f[9], fs[1] + f[10], fs[2] + f[11]]
-        self._f_count += 1
-        cov = self._step_covariance_row()
-        self._after_steps(1)
-        return out[:9], cov
+        methods = self._resolved.get(key)
+        if (methods is None or (dtheta_sub is None) != (dv_sub is None)
+                or tuple(methods) not in _one.ONE_STEP_METHODS or key[2][0] < 4 or key[3][0] < 4
+                or len(key[2]) != 2 or len(key[3]) != 2 or key[2][1] != 3 or key[3][1] != 3
+                or (key[0] is not None and (len(key[0]) != 2 or len(key[1]) != 2))
+                or not _compiled.available()):
+            rows, cov = self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
+            return rows[0], cov[0]
+        # the choice of path, made once per input layout: the compiled step from now on
+        self._compiled_key = key
+        _compiled.set_layout(self._w, key[2][0], key[3][0], None if key[0] is None else key[0][0],
+                             None if key[1] is None else key[1][0])
+        self._row_kernel = _compiled.row_kernel()
+        return self.advance_row(dtheta_sub, dv_sub, dtheta_r, dv_r)
 
     def _after_steps(self, n: int) -> None:
         """Hook of subclasses whose own means follow the INS steps (called by the compiled
@@ -393,16 +455,22 @@ class ErrorStateIns:
         """The navigation block (1, 9, 9) of P after one more step of the interval (one-step paths)."""
         return self._step_covariance_row()[None]
 
+    def _nav_blocks(self) -> np.ndarray:
+        """The navigation block of P at every step of the interval (interval_steps, 9, 9), made once."""
+        # P9(tau) = (tau^p)_p @ coefficients at every step of the interval in one product,
+        # as advance_body does for the steps of a batch
+        if self._poly is None:
+            self._poly = self._series.nav_polynomial(self._P0)
+        tau = (1 + np.arange(self.interval_steps)) * self.dt
+        self._nav_block = ((tau[:, None] ** np.arange(9)) @ self._poly).reshape(-1, 9, 9)
+        return self._nav_block
+
     def _step_covariance_row(self) -> np.ndarray:
         """The navigation block (9, 9) of P after one more step of the interval (one-step paths)."""
-        if self._nav_block is None:
-            # P9(tau) = (tau^p)_p @ coefficients at every step of the interval in one product,
-            # as advance_body does for the steps of a batch
-            if self._poly is None:
-                self._poly = self._series.nav_polynomial(self._P0)
-            tau = (1 + np.arange(self.interval_steps)) * self.dt
-            self._nav_block = ((tau[:, None] ** np.arange(9)) @ self._poly).reshape(-1, 9, 9)
-        cov = self._nav_block[self._j].copy()
+        blocks = self._nav_block
+        if blocks is None:
+            blocks = self._nav_blocks()
+        cov = blocks[self._j].copy()
         self._j += 1
         if self._j == self.interval_steps:
             self._pending = self._full_covariance(self._j)
