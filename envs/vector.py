@@ -34,25 +34,29 @@ Where the time goes
     both draw limits (NumPy's fill and the compiled draws alone).
 
 Threads
-    ``threads=2`` or more: the next chunk is generated on a thread of its own while the
-    steps of the current chunk are served (the chunks do not depend on the actions:
-    scripted motion), its IMU pass split over ``threads`` worker threads of the
-    :class:`~navsim.simulator.SimulatorBatch`, each taking the next group of members
-    (their draws and their arithmetic) from a shared queue, while the chunk thread generates the GNSS, outage, odometer
-    and barometer data. The calling thread then only steps (reward, observation views,
-    info), the chunk-invariant generation never waits for a step and a step waits for a
-    chunk only at its boundary: the part of the work that is not split (the steps)
-    overlaps with the generation instead of following it.
-    The next chunk is started at the first step of the current one, when the caller
-    holds only the current chunk's observations, so that it takes the output buffers of
-    the previous chunk; a reset or ``close`` waits for a chunk being generated and
-    discards it. The members' simulators (:attr:`sims`) are then one chunk ahead of the
-    served step. Every member's numbers are those of ``threads=1``.
+    ``threads=2`` or more: the next chunk is generated on a thread of its own (the chunk
+    thread) while the steps of the current chunk are served (the chunks do not depend on
+    the actions: scripted motion). The chunk thread generates the truth, then queues the
+    IMU groups of the chunk (their draws and their arithmetic, one task per group of
+    members), generates the GNSS, outage, odometer and barometer data, and then runs
+    queued groups itself; the calling thread steps (reward, observation views, info) and,
+    at the end of the chunk, runs queued groups too until the next chunk is done; with
+    ``threads`` > 2, ``threads - 2`` more threads take groups from the queue. So at most
+    ``threads`` threads compute (no more threads than cores asked for), none waits while
+    a group is left, and the part of the work that is not split (the steps) overlaps with
+    the generation instead of following it. The next chunk is started at the first step
+    of the current one, when the caller holds only the current chunk's observations, so
+    that it takes the output buffers of the previous chunk; a reset or ``close`` waits for
+    a chunk being generated and discards it. The members' simulators (:attr:`sims`) are
+    then one chunk ahead of the served step. Every member's numbers are those of
+    ``threads=1`` (each group has its own members' streams and states).
 """
 
 from __future__ import annotations
 
+import collections
 import math
+import threading
 from typing import Any, Sequence
 
 import gymnasium as gym
@@ -85,14 +89,101 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
+class _Task:
+    """One IMU group of a chunk (:func:`navsim.simulator._imu_errors`), run once by the
+    thread that takes it from the queue."""
+
+    __slots__ = ("fn", "args", "done", "error", "tasks")
+
+    def __init__(self, tasks: _GroupTasks, fn: Any, args: tuple) -> None:
+        self.tasks, self.fn, self.args = tasks, fn, args
+        self.done = threading.Event()
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            self.fn(*self.args)
+        except BaseException as exc:  # noqa: BLE001  (handed to the thread that waits for the chunk)
+            self.error = exc
+        finally:
+            self.done.set()
+
+    def result(self) -> None:
+        """Run the queued groups (this one among them, if still queued), then wait for this one."""
+        self.tasks.help_until(None)
+        self.done.wait()
+        if self.error is not None:
+            raise self.error
+
+
+class _GroupTasks:
+    """The executor of the vector env's :class:`~navsim.simulator.SimulatorBatch` with
+    ``threads`` >= 2: a queue of IMU groups run by the threads that wait for them (the
+    chunk thread when it waits for its IMU pass, the calling thread when it waits for the
+    chunk) and by ``extra`` threads of its own (``threads`` - 2), so that no more threads
+    compute than asked for. Each group runs once, on whichever thread takes it."""
+
+    def __init__(self, extra: int) -> None:
+        self._cond = threading.Condition(threading.Lock())
+        self._queue: collections.deque[_Task] = collections.deque()
+        self._closed = False
+        self._threads = [threading.Thread(target=self._serve, name=f"navsim-vector-imu_{k}", daemon=True)
+                         for k in range(extra)]
+        for thread in self._threads:
+            thread.start()
+
+    def submit(self, fn: Any, *args: Any) -> _Task:
+        task = _Task(self, fn, args)
+        with self._cond:
+            self._queue.append(task)
+            self._cond.notify()
+        return task
+
+    def help_until(self, future: Any) -> None:
+        """Run queued groups until the queue is empty and (with a ``future``) the future
+        is done: the calling thread waits for the chunk by working on it."""
+        if future is not None:
+            future.add_done_callback(lambda _: self._wake())
+        while True:
+            with self._cond:
+                while not self._queue and future is not None and not future.done():
+                    self._cond.wait()
+                if not self._queue:
+                    return
+                task = self._queue.popleft()
+            task.run()
+
+    def _wake(self) -> None:
+        with self._cond:
+            self._cond.notify_all()
+
+    def _serve(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                task = self._queue.popleft()
+            task.run()
+
+    def shutdown(self, wait: bool = True) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if wait:
+            for thread in self._threads:
+                thread.join()
+
+
 class NavigationVectorEnv(gym.vector.VectorEnv):
     """N navigation episodes of one scenario in one NumPy pass (see the module docstring).
 
     Parameters are those of :class:`~navsim.envs.navigation.NavigationEnv` plus
     ``num_envs``; ``chunk_steps`` defaults to about 2^18 / N (memory bound); ``threads``
     (default 1): 2 or more generate the next chunk ahead on a thread of its own, its IMU
-    pass split over ``threads`` worker threads (module docstring, "Threads"; the numbers
-    do not change).
+    groups run by ``threads`` threads in all, the calling thread among them (module
+    docstring, "Threads"; the numbers do not change).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": 20}
@@ -120,12 +211,16 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             raise ConfigError("chunk_steps", "a positive integer", chunk_steps)
         self.num_envs = int(num_envs)
         self.scenario = resolve_scenario(scenario, overrides)
-        self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads)
+        if isinstance(threads, bool) or int(threads) != threads or threads < 1:
+            raise ConfigError("threads", "a positive integer", threads)
         # threads >= 2: the next chunk is generated on a thread of its own while the steps
-        # of the current one are served (the chunks do not depend on the actions)
+        # of the current one are served (the chunks do not depend on the actions), its
+        # IMU groups run by the threads that wait for them (module docstring, "Threads")
         self._loader = None
         self._next = None  # the Future of the next chunk
-        if self.batch.threads > 1:
+        self._tasks = _GroupTasks(int(threads) - 2) if threads > 1 else None
+        self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads, executor=self._tasks)
+        if self._tasks is not None:
             from concurrent.futures import ThreadPoolExecutor
 
             self._loader = ThreadPoolExecutor(1, thread_name_prefix="navsim-vector-chunk")
@@ -231,6 +326,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
     def _load_chunk(self) -> None:
         if self._next is not None:  # generated ahead (threads >= 2)
             future, self._next = self._next, None
+            assert self._tasks is not None
+            self._tasks.help_until(future)  # run IMU groups of it until it is done
             made = future.result()
         else:
             made = self._make_chunk()

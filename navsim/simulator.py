@@ -762,6 +762,10 @@ class SimulatorBatch:
         Worker threads for the IMU error pass (default 1: none), each taking the next
         group of members while the calling thread generates the GNSS, outage, odometer
         and barometer data. Each member's numbers are the same whatever the number of threads.
+    executor : optional
+        Instead of the worker threads: an object with ``submit(fn, *args)`` (returning an
+        object with ``result()``) and ``shutdown(wait=True)`` that runs the IMU groups
+        (the native vector env's, whose waiting threads run the groups themselves).
 
     The chunks' IMU output arrays come from a pool of :data:`OUTPUT_POOL` sets, reused
     once nothing references a set any more (a kept chunk or observation keeps its set
@@ -779,7 +783,7 @@ class SimulatorBatch:
     (3, 100, 4, 3)
     """
 
-    def __init__(self, scenario: Scenario, size: int, threads: int = 1):
+    def __init__(self, scenario: Scenario, size: int, threads: int = 1, executor: Any = None):
         import copy
 
         if isinstance(size, bool) or int(size) != size or size < 1:
@@ -787,8 +791,8 @@ class SimulatorBatch:
         if isinstance(threads, bool) or int(threads) != threads or threads < 1:
             raise ConfigError("threads", "a positive integer", threads)
         self.threads = int(threads)
-        self._executor = None
-        if self.threads > 1:
+        self._executor = executor  # the caller's (it is shut down by close)
+        if executor is None and self.threads > 1:
             from concurrent.futures import ThreadPoolExecutor
 
             self._executor = ThreadPoolExecutor(self.threads, thread_name_prefix="navsim-batch")

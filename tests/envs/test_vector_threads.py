@@ -27,11 +27,11 @@ def _same(a: dict, b: dict) -> bool:
     return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
 
 
-def _pair(chunk_steps: int, score: bool = True, extra: dict | None = None
+def _pair(chunk_steps: int, score: bool = True, extra: dict | None = None, threads: int = 2
           ) -> tuple[NavigationVectorEnv, NavigationVectorEnv]:
     over = {**OVER, **(extra or {})}
     one, two = (NavigationVectorEnv(N, "paper-2012", chunk_steps=chunk_steps, score=score, threads=t,
-                                    reward_weights=(1.0, 0.5, 2.0), **over) for t in (1, 2))
+                                    reward_weights=(1.0, 0.5, 2.0), **over) for t in (1, threads))
     assert one._loader is None and two._loader is not None
     return one, two
 
@@ -50,8 +50,9 @@ def _step_both(one, two, actions) -> None:
             assert np.array_equal(info1[key], info2[key]), key
 
 
-@pytest.mark.parametrize(("chunk_steps", "extra"), [(1, {}), (37, {}), (37, MEMS)], ids=["chunk-1", "chunk-37", "mems"])
-def test_two_threads_equal_one_thread_through_autoresets(chunk_steps, extra):
+@pytest.mark.parametrize(("chunk_steps", "extra", "threads"), [(1, {}, 2), (37, {}, 2), (37, MEMS, 2), (37, {}, 3)],
+                         ids=["chunk-1", "chunk-37", "mems", "three-threads"])
+def test_two_threads_equal_one_thread_through_autoresets(chunk_steps, extra, threads):
     """Every member's observations, rewards, flags, infos and episode scores with threads=2
     are those of threads=1 (itself equal to the single envs: test_vector_render.py), over
     two episodes and their autoreset, with chunks that do not divide the episode (37
@@ -126,3 +127,25 @@ def test_first_use_in_a_fresh_process_with_threads():
     for _ in range(2):
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
         assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_an_error_in_an_imu_group_reaches_the_caller(monkeypatch):
+    """A group that fails (on whichever thread ran it) fails the chunk: the step that needs
+    the chunk raises the error, and the env still closes (no thread left waiting)."""
+    from navsim.sensors import imu as imu_mod
+
+    venv = NavigationVectorEnv(N, "paper-2012", chunk_steps=20, score=False, threads=2, **OVER)
+    venv.reset(seed=0)
+    real = imu_mod.apply_imu_errors_batch_state
+
+    def failing(*args, **kwargs):
+        if args[7].size != IMU_GROUP:  # the second, smaller group
+            raise FloatingPointError("injected")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(imu_mod, "apply_imu_errors_batch_state", failing)
+    with pytest.raises(FloatingPointError, match="injected"):
+        for _ in range(20):
+            venv.step(np.zeros((N, 9)))
+    venv.close()
+    assert venv._next is None and venv._loader is None
