@@ -219,7 +219,12 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self._loader = None
         self._next = None  # the Future of the next chunk
         self._tasks = _GroupTasks(int(threads) - 2) if threads > 1 else None
-        self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads, executor=self._tasks)
+        try:
+            self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads, executor=self._tasks)
+        except BaseException:
+            if self._tasks is not None:  # its own threads (threads > 2) would wait forever
+                self._tasks.shutdown()
+            raise
         if self._tasks is not None:
             from concurrent.futures import ThreadPoolExecutor
 
