@@ -11,6 +11,13 @@ bit wherever the C library's ``sin``/``cos`` are those Python calls
 
 :func:`run` is the plain-Python source; :func:`kernel` returns it compiled (numba, optional
 extra ``fast``; compiled on the first call and cached on disk), or None without numba.
+
+One navigation step of the error-state INS (the step-wise estimators between GNSS epochs):
+:func:`one_step` (strapdown terms, bias removal, one step of :func:`run`, solution row and
+specific force) and :func:`step_row`, the same step on a work array (:func:`work_array`:
+constants, biases, state, the specific-force sum; the input layout recorded by
+:func:`set_layout` and checked on every call) that also copies the covariance block of the
+step; :func:`step_kernel` and :func:`row_kernel` return them compiled.
 """
 
 from __future__ import annotations
