@@ -79,8 +79,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ConfigError
+from ..option_checks import check_auto_none, check_choice, check_optional_positive_finite
 from ..rotations import euler_krylov_from_matrix, euler_krylov_matrix, hpr_from_mat_nb, mat_nb_from_hpr
-from ..validation import check_auto_none, check_choice, check_optional_positive_finite
 from .base import Context, Estimate, EstimateBatch, GnssObservation, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .paper_ekf import input_polynomial_matrix
 

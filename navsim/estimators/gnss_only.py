@@ -40,7 +40,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ..validation import check_integer, check_nonnegative_finite, check_positive_finite
+from ..option_checks import check_integer, check_nonnegative_finite, check_positive_finite
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 from .loosely import gnss_fixes
 
@@ -284,10 +284,10 @@ class GnssConstantVelocity(NoiseScalable):
         self._t = t
         # update: z = [r_fix, v_fix], R from the fix geometry
         z = np.concatenate([pos_e[e], vel_e[e]])[: kf.dim_z]
-        R = np.zeros((6, 6))
-        R[:3, :3] = self.sigma_pos**2 * cov_pos[e]
-        R[3:, 3:] = self.sigma_vel**2 * cov_vel[e]
-        R = R[: kf.dim_z, : kf.dim_z]
+        R_full = np.zeros((6, 6))
+        R_full[:3, :3] = self.sigma_pos**2 * cov_pos[e]
+        R_full[3:, 3:] = self.sigma_vel**2 * cov_vel[e]
+        R = R_full[: kf.dim_z, : kf.dim_z]
         kf.update(z, R=0.5 * (R + R.T))
         kf.P = 0.5 * (kf.P + kf.P.T)
         y = np.asarray(kf.y, dtype=float).reshape(-1)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
-from ..validation import check_positive_finite
+from ..option_checks import check_positive_finite
 from ._inserror import ErrorStateIns, ImuNoise
 from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
 

@@ -137,9 +137,7 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ..receiver import least_squares_fix, velocity_fix
-from ..rotations import mat_nb_from_hpr, quat_to_mat
-from ..validation import (
+from ..option_checks import (
     check_auto_none,
     check_choice,
     check_integer,
@@ -148,6 +146,8 @@ from ..validation import (
     check_probability,
     check_time_constant,
 )
+from ..receiver import least_squares_fix, velocity_fix
+from ..rotations import mat_nb_from_hpr, quat_to_mat
 from ._inserror import (
     N_STATES,
     NAV,

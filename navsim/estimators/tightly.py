@@ -174,14 +174,14 @@ import numpy as np
 
 from ..earth import mat_en
 from ..errors import ConfigError
-from ..rotations import quat_to_mat
-from ..validation import (
+from ..option_checks import (
     check_auto_none,
     check_integer,
     check_optional_positive_finite,
     check_positive_finite,
     check_time_constant,
 )
+from ..rotations import quat_to_mat
 from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
 from .base import (
     Context,
