@@ -67,6 +67,9 @@ BAD_OPTIONS = [
     ("gnss-cv", "measurement_scale", "2"), ("ins-only", "covariance_period_s", True),
     ("full-state-ekf", "cov_step_s", math.nan), ("full-state-ekf", "input_model", "linear"),
     ("full-state-ekf", "lever_arm", True),
+    ("paper-ekf", "node_step_m", True), ("paper-ekf", "node_step_m", math.inf), ("paper-ekf", "cov_step_s", True),
+    ("paper-ekf", "stiffness_limit", 3.0), ("paper-ekf", "stiffness_limit", True), ("paper-ekf", "engine", "fast"),
+    ("paper-ekf", "bias_states", None), ("paper-ekf", "mode", "paper"), ("paper-ekf", "lever_arm", 0),
 ]
 
 

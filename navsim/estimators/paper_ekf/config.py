@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...errors import ConfigError
+from ...option_checks import check_auto_none, check_choice, check_optional_positive_finite, check_positive_finite
 from . import kernel as _kernel
 
 __all__ = ["PaperEkfConfig", "PRINTED_ITEMS"]
@@ -55,8 +56,7 @@ class PaperEkfConfig:
     engine: str = "auto"
 
     def __post_init__(self) -> None:
-        if self.mode not in ("faithful", "extended"):
-            raise ConfigError("mode", "'faithful' or 'extended'", self.mode)
+        check_choice("mode", self.mode, ("faithful", "extended"))
         printed = self.as_printed
         if printed is True:
             printed = PRINTED_ITEMS
@@ -73,24 +73,20 @@ class PaperEkfConfig:
         if printed and self.mode != "faithful":
             raise ConfigError("as_printed", "only with mode='faithful'", self.as_printed)
         object.__setattr__(self, "as_printed", printed)
-        if self.cov_step_s is not None and not (isinstance(self.cov_step_s, (int, float)) and self.cov_step_s > 0):
-            raise ConfigError("cov_step_s", "None or a positive step (s)", self.cov_step_s)
+        check_optional_positive_finite("cov_step_s", self.cov_step_s, "None or a positive step (s)")
         if self.input_model not in (None, "polynomial", "mean"):
             raise ConfigError("input_model", "None, 'polynomial' or 'mean'", self.input_model)
         if self.accel_in_update not in (None, True, False):
             raise ConfigError("accel_in_update", "None, True or False", self.accel_in_update)
-        if self.bias_states not in ("auto", "on", "off"):
-            raise ConfigError("bias_states", "'auto', 'on' or 'off'", self.bias_states)
-        if not (isinstance(self.node_step_m, (int, float)) and self.node_step_m > 0):
-            raise ConfigError("node_step_m", "a positive node spacing (m)", self.node_step_m)
-        if not (isinstance(self.stiffness_limit, (int, float)) and 0 < self.stiffness_limit <= 2.5):
-            raise ConfigError("stiffness_limit", "a number in (0, 2.5] (RK4 is stable below 2.78)", self.stiffness_limit)
-        if self.lever_arm not in ("auto", "none"):
-            raise ConfigError("lever_arm", "'auto' or 'none'", self.lever_arm)
+        check_choice("bias_states", self.bias_states, ("auto", "on", "off"))
+        check_positive_finite("node_step_m", self.node_step_m, "a positive node spacing (m)")
+        stiffness = "a number in (0, 2.5] (RK4 is stable below 2.78)"
+        if check_positive_finite("stiffness_limit", self.stiffness_limit, stiffness) > 2.5:
+            raise ConfigError("stiffness_limit", stiffness, self.stiffness_limit)
+        check_auto_none("lever_arm", self.lever_arm)
         if self.observer not in (True, False):
             raise ConfigError("observer", "True or False", self.observer)
-        if self.engine not in ("auto", "python", "compiled"):
-            raise ConfigError("engine", "'auto', 'python' or 'compiled'", self.engine)
+        check_choice("engine", self.engine, ("auto", "python", "compiled"))
         if self.engine == "compiled" and not _kernel.available():
             raise ConfigError("engine", "'auto' or 'python' (the compiled engine needs numba: "
                               "pip install 'navsim-track[fast]')", self.engine)
