@@ -244,6 +244,25 @@ def _sym4_inverse(a: np.ndarray, inverse: np.ndarray) -> bool:
     return True
 
 
+def _add_row(normal: np.ndarray, rhs: np.ndarray, h0: float, h1: float, h2: float, y: float) -> None:
+    """Add one channel's row ``h = [h0, h1, h2, 1]`` with residual ``y`` to the normal
+    equations: the upper triangle of ``H^T H`` and ``H^T y`` (the caller mirrors the triangle)."""
+    normal[0, 0] += h0 * h0
+    normal[0, 1] += h0 * h1
+    normal[0, 2] += h0 * h2
+    normal[0, 3] += h0
+    normal[1, 1] += h1 * h1
+    normal[1, 2] += h1 * h2
+    normal[1, 3] += h1
+    normal[2, 2] += h2 * h2
+    normal[2, 3] += h2
+    normal[3, 3] += 1.0
+    rhs[0] += h0 * y
+    rhs[1] += h1 * y
+    rhs[2] += h2 * y
+    rhs[3] += y
+
+
 def _position_normal(sat: np.ndarray, rho: np.ndarray, use: np.ndarray, state: np.ndarray, guard: bool,
                      normal: np.ndarray, rhs: np.ndarray) -> None:
     """Normal matrix ``H^T H`` and right-hand side ``H^T r`` of one epoch at ``state``:
@@ -262,20 +281,7 @@ def _position_normal(sat: np.ndarray, rho: np.ndarray, use: np.ndarray, state: n
             dist = 1.0
         h0, h1, h2 = -(lx / dist), -(ly / dist), -(lz / dist)
         res = rho[j] - (dist + state[3])
-        normal[0, 0] += h0 * h0
-        normal[0, 1] += h0 * h1
-        normal[0, 2] += h0 * h2
-        normal[0, 3] += h0
-        normal[1, 1] += h1 * h1
-        normal[1, 2] += h1 * h2
-        normal[1, 3] += h1
-        normal[2, 2] += h2 * h2
-        normal[2, 3] += h2
-        normal[3, 3] += 1.0
-        rhs[0] += h0 * res
-        rhs[1] += h1 * res
-        rhs[2] += h2 * res
-        rhs[3] += res
+        _add_row(normal, rhs, h0, h1, h2, res)
     for i in range(4):
         for j in range(i):
             normal[i, j] = normal[j, i]
@@ -369,20 +375,7 @@ def velocity_epochs(sat: np.ndarray, vel: np.ndarray, rate: np.ndarray, valid: n
             u0, u1, u2 = lx / dist, ly / dist, lz / dist
             y = rate[e, j] - (u0 * vel[e, j, 0] + u1 * vel[e, j, 1] + u2 * vel[e, j, 2])
             h0, h1, h2 = -u0, -u1, -u2
-            normal[0, 0] += h0 * h0
-            normal[0, 1] += h0 * h1
-            normal[0, 2] += h0 * h2
-            normal[0, 3] += h0
-            normal[1, 1] += h1 * h1
-            normal[1, 2] += h1 * h2
-            normal[1, 3] += h1
-            normal[2, 2] += h2 * h2
-            normal[2, 3] += h2
-            normal[3, 3] += 1.0
-            rhs[0] += h0 * y
-            rhs[1] += h1 * y
-            rhs[2] += h2 * y
-            rhs[3] += y
+            _add_row(normal, rhs, h0, h1, h2, y)
         for i in range(4):
             for j in range(i):
                 normal[i, j] = normal[j, i]
@@ -407,7 +400,8 @@ def epoch_kernels() -> tuple[Callable[..., None], Callable[..., None]] | None:
     if not _kernels:
         import numba
 
-        global _sym4_inverse, _position_normal
+        global _sym4_inverse, _position_normal, _add_row
+        _add_row = numba.njit(cache=True, nogil=True)(_add_row)
         _sym4_inverse = numba.njit(cache=True, nogil=True)(_sym4_inverse)
         _position_normal = numba.njit(cache=True, nogil=True)(_position_normal)
         _kernels.append((numba.njit(cache=True, nogil=True)(fix_epochs),

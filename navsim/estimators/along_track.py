@@ -1270,48 +1270,40 @@ def _step_row(values, derivs, w_n, g, dg, prm, x, dv_r, P, floor, sol, cov):
     return 0
 
 
-_MAP_ROW: list = []
-_OUTPUT_ROW: list = []
-_STEP_ROW: list = []
+# The compiled row kernels and the kernel each one calls (compiled first, then put in the
+# module's globals so that numba resolves the call to the compiled function).
+_CALLS: dict[str, str | None] = {"_map_row": None, "_output_row": "_map_row", "_step_row": "_output_row"}
+_KERNELS: dict[str, Any] = {}
 
 
-def _map_row_kernel():
-    """:func:`_map_row` compiled by numba (cached on disk), or None without numba."""
-    if not _MAP_ROW:
+def _row_kernel(name: str) -> Any:
+    """The function ``name`` of :data:`_CALLS` compiled by numba (cached on disk, made once
+    per process), or None without numba."""
+    if name not in _KERNELS:
         from ..strapdown import compiled
 
-        if compiled.available():
-            import numba
-
-            _MAP_ROW.append(numba.njit(cache=True, nogil=True)(_map_row))
-        else:
-            _MAP_ROW.append(None)
-    return _MAP_ROW[0]
-
-
-def _output_row_kernel():
-    """:func:`_output_row` compiled by numba (cached on disk), or None without numba."""
-    if not _OUTPUT_ROW:
-        kern = _map_row_kernel()
-        if kern is None:
-            _OUTPUT_ROW.append(None)
+        callee = _CALLS[name]
+        if not compiled.available():
+            _KERNELS[name] = None
         else:
             import numba
 
-            globals()["_map_row"] = kern  # _output_row calls the compiled _map_row
-            _OUTPUT_ROW.append(numba.njit(cache=True, nogil=True)(_output_row))
-    return _OUTPUT_ROW[0]
+            if callee is not None:
+                globals()[callee] = _row_kernel(callee)
+            _KERNELS[name] = numba.njit(cache=True, nogil=True)(globals()[name])
+    return _KERNELS[name]
 
 
-def _step_row_kernel():
-    """:func:`_step_row` compiled by numba (cached on disk), or None without numba."""
-    if not _STEP_ROW:
-        kern = _output_row_kernel()
-        if kern is None:
-            _STEP_ROW.append(None)
-        else:
-            import numba
+def _map_row_kernel() -> Any:
+    """:func:`_map_row` compiled, or None without numba."""
+    return _row_kernel("_map_row")
 
-            globals()["_output_row"] = kern  # _step_row calls the compiled _output_row
-            _STEP_ROW.append(numba.njit(cache=True, nogil=True)(_step_row))
-    return _STEP_ROW[0]
+
+def _output_row_kernel() -> Any:
+    """:func:`_output_row` compiled (it calls the compiled :func:`_map_row`), or None."""
+    return _row_kernel("_output_row")
+
+
+def _step_row_kernel() -> Any:
+    """:func:`_step_row` compiled (it calls the compiled :func:`_output_row`), or None."""
+    return _row_kernel("_step_row")
