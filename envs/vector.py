@@ -57,7 +57,8 @@ from __future__ import annotations
 import collections
 import math
 import threading
-from typing import Any, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -74,6 +75,9 @@ from navsim.signals import Layout, ObservationCodec
 from .chunks import EpisodeTape, chunk_truth_table, held_flags
 from .navigation import resolve_scenario
 from .spaces import ACTION_SCALE, action_space, check_action, layout_space
+
+if TYPE_CHECKING:  # type hints only
+    from navsim.metrics import EpisodeScore
 
 __all__ = ["NavigationVectorEnv"]
 
@@ -216,8 +220,8 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         # threads >= 2: the next chunk is generated on a thread of its own while the steps
         # of the current one are served (the chunks do not depend on the actions), its
         # IMU groups run by the threads that wait for them (module docstring, "Threads")
-        self._loader = None
-        self._next = None  # the Future of the next chunk
+        self._loader: ThreadPoolExecutor | None = None
+        self._next: Future[tuple] | None = None  # the Future of the next chunk
         self._tasks = _GroupTasks(int(threads) - 2) if threads > 1 else None
         try:
             self.batch = SimulatorBatch(self.scenario, self.num_envs, threads=threads, executor=self._tasks)
@@ -226,8 +230,6 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
                 self._tasks.shutdown()
             raise
         if self._tasks is not None:
-            from concurrent.futures import ThreadPoolExecutor
-
             self._loader = ThreadPoolExecutor(1, thread_name_prefix="navsim-vector-chunk")
         base = self.batch.members[0]
         self.context = make_context(base)
@@ -248,7 +250,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self.n_steps = timing.steps
         self.n_sats = len(self.prn)
         self._has_odometer = bool(self.scenario.odometer.enabled)
-        self.single_observation_space = layout_space(Layout.of(self.scenario, self.n_sats))  # by the Signals
+        self.single_observation_space: gym.spaces.Dict = layout_space(Layout.of(self.scenario, self.n_sats))  # by the Signals
         self.single_action_space = action_space(self.physical_action)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -261,7 +263,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self._falses = _frozen(np.zeros(n, dtype=bool))
         self._k = -1
         self._autoreset = False
-        self._rngs = None
+        self._rngs: list[np.random.Generator] = []  # the sub-envs' seeding generators, set by reset()
         self.tapes: list[EpisodeTape] | None = None
         self.closed = False
 
@@ -277,6 +279,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         if options and "reset_mask" in options and not np.all(options["reset_mask"]):
             raise ConfigError("options.reset_mask", "all True (the native vector env resets all at once)",
                               options["reset_mask"])
+        seeds: list[int | None]
         if seed is None:
             seeds = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)):
@@ -289,7 +292,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
         self._agent = str(options["agent"]) if options and "agent" in options else "agent"
         return self._reset_all(seeds)
 
-    def _reset_all(self, seeds: list):
+    def _reset_all(self, seeds: list[int | None]) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         self._drain()
         # as NavigationEnv.reset: a missing seed is drawn from the sub-env's generator
         self.seeds = [int(s) if s is not None else int(rng.integers(0, 2**63 - 1)) for s, rng in zip(seeds, self._rngs)]
@@ -419,12 +422,14 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
     def _terminal_obs(self) -> dict:
         n = self.num_envs
         sp = self.single_observation_space
-        obs = {key: np.zeros((n, *sp[key].shape), dtype=sp[key].dtype) for key in sp}
+        obs = {key: np.zeros((n, *(space.shape or ())), dtype=space.dtype) for key, space in sp.items()}
         obs["t"][:] = self.scenario.timing.duration_s
         return obs
 
-    def _score(self, j: int):
+    def _score(self, j: int) -> EpisodeScore:
         from navsim.metrics import score_episode
+
+        assert self.tapes is not None  # score=True
 
         record = self.tapes[j].record(self.scenario, self.seeds[j], self._agent, self.sims[j].earth, self.priors[j],
                                       self.action_scale)
