@@ -18,6 +18,8 @@ Generated FMUs contain a one-line slave script that subclasses :class:`PlantSlav
 
 from __future__ import annotations
 
+from typing import Any, ClassVar, NoReturn
+
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
@@ -29,10 +31,10 @@ guard_embedded_exit()  # a non-Python host: see navsim.fmu.runtime
 
 __all__ = ["PlantSlave", "EstimatorSlave", "pin_module_dict"]
 
-_PINNED: list = []
+_PINNED: list[dict[str, Any]] = []
 
 
-def pin_module_dict(namespace: dict) -> None:
+def pin_module_dict(namespace: dict[str, Any]) -> None:
     """Keep one reference to the slave script's module dict per execution of the script.
 
     pythonfmu 0.7's loader (``findClass`` in its C++ shim) re-executes the slave script
@@ -49,9 +51,9 @@ _LEVEL = {"info": Fmi2Status.ok, "warning": Fmi2Status.warning, "error": Fmi2Sta
 
 
 class _Slave(SlaveValues, Fmi2Slave):
-    runtime_class = None
+    runtime_class: ClassVar[type[PlantRuntime] | type[EstimatorRuntime]]  # set by the two subclasses below
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._failed = False
         self.rt = self.runtime_class(self.resources, 2, self._log)
@@ -59,16 +61,16 @@ class _Slave(SlaveValues, Fmi2Slave):
     def _log(self, message: str, level: str = "info") -> None:
         self.log(message, _LEVEL[level])
 
-    def _fail(self, message: str) -> None:
+    def _fail(self, message: str) -> NoReturn:
         self.log(message, Fmi2Status.error)
         _mark_failed(self)
         raise FmuError(message)
 
     # -- life cycle ------------------------------------------------------------------------
-    def setup_experiment(self, start_time, *_):  # stop time and tolerance: unused
+    def setup_experiment(self, start_time: float, *_: Any) -> None:  # stop time and tolerance: unused
         self.rt.start_time = float(start_time)  # refused at exitInitializationMode unless 0
 
-    def exit_initialization_mode(self):
+    def exit_initialization_mode(self) -> None:
         if self._failed:
             return
         try:
@@ -92,16 +94,16 @@ class _Slave(SlaveValues, Fmi2Slave):
             return False
         return True
 
-    def get_real(self, vrs):
+    def get_real(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "real")
 
-    def get_integer(self, vrs):
+    def get_integer(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "int")
 
-    def set_real(self, vrs, values):
+    def set_real(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, values, "real")
 
-    def set_integer(self, vrs, values):
+    def set_integer(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, values, "int")
 
 

@@ -10,6 +10,8 @@ as in FMI 2 (without the guard it raises, which pythonfmu3's C layer reports as
 
 from __future__ import annotations
 
+from typing import Any, ClassVar, NoReturn
+
 from pythonfmu3 import Fmi3Slave
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.fmi3slave import Fmi3StepResult
@@ -27,9 +29,9 @@ _OK = Fmi3StepResult()  # an immutable NamedTuple: one instance serves every acc
 
 
 class _Slave(SlaveValues, Fmi3Slave):
-    runtime_class = None
+    runtime_class: ClassVar[type[PlantRuntime] | type[EstimatorRuntime]]  # set by the two subclasses below
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._failed = False
         self.rt = self.runtime_class(self.resources, 3, self._log)
@@ -39,15 +41,15 @@ class _Slave(SlaveValues, Fmi3Slave):
     def _log(self, message: str, level: str = "info") -> None:
         self.log(message, _LEVEL[level])
 
-    def _fail(self, message: str) -> None:
+    def _fail(self, message: str) -> NoReturn:
         self.log(message, Fmi3Status.error)
         _mark_failed(self)
         raise FmuError(message)
 
-    def setup_experiment(self, start_time, *_):
+    def setup_experiment(self, start_time: float, *_: Any) -> None:
         self.rt.start_time = float(start_time)  # refused at exitInitializationMode unless 0
 
-    def exit_initialization_mode(self):
+    def exit_initialization_mode(self) -> None:
         if self._failed:
             return
         try:
@@ -57,7 +59,7 @@ class _Slave(SlaveValues, Fmi3Slave):
                 return
             self._fail(str(exc))
 
-    def do_step(self, current_time: float, step_size: float):
+    def do_step(self, current_time: float, step_size: float) -> Fmi3StepResult:
         if self._failed:
             self.log("doStep refused: the instance failed earlier (see the log); free it", Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)
@@ -72,16 +74,16 @@ class _Slave(SlaveValues, Fmi3Slave):
         self.time = self._time[0] = current_time + step_size  # value reference 0 (ValueStore.set_time)
         return _OK
 
-    def get_float64(self, vrs):
+    def get_float64(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "real")
 
-    def get_int32(self, vrs):
+    def get_int32(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "int")
 
-    def set_float64(self, vrs, values):
+    def set_float64(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, values, "real")
 
-    def set_int32(self, vrs, values):
+    def set_int32(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, values, "int")
 
 

@@ -94,7 +94,7 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Callable, NoReturn, cast
 
 import numpy as np
 
@@ -104,6 +104,11 @@ from navsim.signals import MEASUREMENT_SIGNALS, STEP_SIGNALS, signal
 from navsim.types import GnssObservation, Measurement
 
 from .variables import Dimensions, Var, estimator_variables, plant_variables
+
+if TYPE_CHECKING:
+    from navsim.motion import ExternalMotion
+    from navsim.scenario import Scenario
+    from navsim.signals import Signal
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -301,7 +306,7 @@ def _zero(type_: str) -> Any:
 
 
 # =========================================================================== scenario
-def load_embedded(resources: str | Path):
+def load_embedded(resources: str | Path) -> tuple[Scenario, dict[str, Any]]:
     """The scenario and build metadata written into an FMU's resources folder."""
     from navsim.scenario import Scenario
 
@@ -314,7 +319,7 @@ def load_embedded(resources: str | Path):
     return Scenario.from_dict(data, source=SCENARIO_FILE, base_dir=str(folder)), meta
 
 
-def plant_defaults(scenario) -> dict:
+def plant_defaults(scenario: Scenario) -> dict[str, Any]:
     """Start values of the plant FMU's parameters and inputs for ``scenario``."""
     m = scenario.motion
     return {
@@ -335,14 +340,14 @@ def plant_defaults(scenario) -> dict:
     }
 
 
-def _toml_value(field: str, text: str):
+def _toml_value(field: str, text: str) -> Any:
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(field, "a TOML value", f"{text} ({exc})") from None
 
 
-def effective_scenario(base, params: dict):
+def effective_scenario(base: Scenario, params: dict[str, Any]) -> Scenario:
     """The scenario after the plant FMU's parameter values (ConfigError on a bad one)."""
     over: dict = {}
     if params["imu.preset"] != base.imu.preset:
@@ -384,10 +389,21 @@ def effective_scenario(base, params: dict):
 
 
 # =========================================================================== plant
+Log = Callable[..., None]
+"""The slave's log callback: ``log(message, level="info")`` with level "info", "warning" or "error"."""
+
+
 class _RuntimeBase:
     kind = ""
+    # set by the subclass's __init__ (store) and at exitInitializationMode (the rest)
+    store: ValueStore
+    timing: Any  # navsim.scenario.Timing
+    tick: int
+    end_tick: int
+    nav_ticks: int
+    start_time: float  # set by setupExperiment (FMI 2) / enterInitializationMode (FMI 3), if called
 
-    def __init__(self, resources: str, fmi: int, log=None):
+    def __init__(self, resources: str, fmi: int, log: Log | None = None) -> None:
         self.resources = resources
         self.fmi = fmi
         self.log = log or (lambda message, level="info": None)
@@ -402,7 +418,7 @@ class _RuntimeBase:
         self._h_checked: tuple[float, float] = (math.nan, math.nan)  # (h, tick) of the last accepted step
         self._h_ticks = 0
 
-    def _info(self, scenario) -> None:
+    def _info(self, scenario: Scenario) -> None:
         self.store.write("navsim.version", _version())
         self.store.write("navsim.build_version", str(self.meta.get("build_version", "")))
         self.store.write("navsim.config_hash", scenario.config_hash())
@@ -420,7 +436,7 @@ class _RuntimeBase:
             raise FmuError(f"start time {self.start_time!r} s refused: a navsim episode starts at t = 0 (the FMU's "
                            "time counts ticks from the episode start)")
 
-    def params(self) -> dict:
+    def params(self) -> dict[str, Any]:
         return {v.name: self.store.read(v.name) for v in self.store.table if v.causality in ("parameter", "input")}
 
     # FMI set: parameters only before initialisation is over, inputs at any time
@@ -540,7 +556,7 @@ class PlantRuntime(_RuntimeBase):
         a0 = float(params["motion.accel_mps2"])
         if self.external and a0 != 0.0:  # Simulator.reset starts external motion at zero acceleration
             m = scenario.motion
-            sim.profile.reset(0.0, m.start_s_m, m.speed_mps, a0)
+            cast("ExternalMotion", sim.profile).reset(0.0, m.start_s_m, m.speed_mps, a0)
             start = type(start)(truth=sim.truth_at([0.0]), prior=start.prior)
         self._info(scenario)
         self.store.write("gnss.prn", np.asarray(sim.constellation.prn))
@@ -597,7 +613,7 @@ class PlantRuntime(_RuntimeBase):
                 imu.dtheta_sample[:, :, 0].reshape(n, -1), imu.dv_sample[:, :, 0].reshape(n, -1)]
         other = [(chunk.step0 + 1 + np.arange(n))[:, None], np.ones((n, 1), dtype=np.int64)]
         for sig in self._step_signals:
-            (real if sig.dtype == "float64" else other).append(sig.read(chunk).reshape(n, -1))
+            (real if sig.dtype == "float64" else other).append(_read(sig, chunk).reshape(n, -1))
         real.append(_truth_rows(chunk.truth, self._truth))
         self._rows = (np.concatenate(real, axis=1), np.concatenate(other, axis=1))
         epoch_of: list = [None] * n
@@ -668,7 +684,7 @@ class PlantRuntime(_RuntimeBase):
         for sig in self._step_signals:
             if sig.compose != "sum":  # "last": the reading at the end of the interval
                 continue
-            values = [sig.read(c)[j] for c, j in served]
+            values = [_read(sig, c)[j] for c, j in served]
             if sig.dtype == "float64":  # distances of consecutive steps add exactly
                 real[col[sig.fmu_name]] = math.fsum(float(x) for x in values)
             else:
@@ -686,6 +702,14 @@ class PlantRuntime(_RuntimeBase):
         if self._chunk is not chunk:
             self._lay_out(chunk)
         self._write_epoch(epoch)
+
+
+def _read(sig: Signal, chunk: Any) -> np.ndarray:
+    """A present per-step signal's array of a chunk (FmuError if the chunk lacks it)."""
+    values = sig.read(chunk)
+    if values is None:
+        raise FmuError(f"the simulator's chunk lacks the per-step signal {sig.fmu_name!r} of the FMU's table")
+    return values
 
 
 def _elements(segments: list[tuple[np.ndarray, slice, slice]]) -> Any:
@@ -713,7 +737,7 @@ class EstimatorRuntime(_RuntimeBase):
 
     kind = "estimator"
 
-    def __init__(self, resources: str, fmi: int, log=None):
+    def __init__(self, resources: str, fmi: int, log: Log | None = None) -> None:
         from navsim.earth import earth_model
         from navsim.simulator import build_gnss
 
@@ -778,8 +802,8 @@ class EstimatorRuntime(_RuntimeBase):
         self.end_tick = self.timing.steps * self.nav_ticks
         self.tick = 0  # the estimator FMU's time in simulator ticks
         self.processed = 0  # plant steps processed (nav.step)
-        self.lagged = None  # None until the master's order is seen; then True (Jacobi) or False
-        self.span = None  # navigation steps per communication step, fixed by the first that ends one
+        self.lagged: bool | None = None  # None until the master's order is seen; then True (Jacobi) or False
+        self.span: int | None = None  # navigation steps per communication step, fixed by the first that ends one
         self.started = False
         self._fast = None
         self.initialised = True
@@ -1146,7 +1170,7 @@ _FAILED: list = []
 _GUARD_LIBS: dict = {}
 
 
-def refuse_through_guard(rt, message: str) -> bool:
+def refuse_through_guard(rt: _RuntimeBase, message: str) -> bool:
     """Ask the FMU's C guard (:mod:`navsim.fmu.guard`) to answer the current
     ``exitInitializationMode`` with an error status and ``message`` as its log line;
     False when the FMU has no guard (then the caller raises: pythonfmu's Fatal status)."""
@@ -1172,7 +1196,7 @@ def refuse_through_guard(rt, message: str) -> bool:
     return False
 
 
-def mark_failed(slave) -> None:
+def mark_failed(slave: Any) -> None:
     """Mark a slave (FMI 2 or 3) failed under the protocol above (idempotent)."""
     if not slave._failed:
         slave._failed = True
@@ -1190,14 +1214,20 @@ class SlaveValues:
     Subclasses provide ``rt`` (a runtime), ``_failed`` and ``_fail(message)``.
     """
 
-    def _zeros(self, vrs, type_):
+    rt: PlantRuntime | EstimatorRuntime
+    _failed: bool
+
+    def _fail(self, message: str) -> NoReturn:  # pragma: no cover - the slave classes define it
+        raise FmuError(message)
+
+    def _zeros(self, vrs: list[int], type_: str) -> list[Any]:
         zero = {"real": 0.0, "int": 0, "bool": False, "string": ""}[type_]
         try:
             return [zero] * len(self.rt.store.get(vrs, type_))
         except Exception:
             return [zero] * len(vrs)
 
-    def _get(self, vrs, type_):
+    def _get(self, vrs: list[int], type_: str) -> list[Any]:
         if self._failed:
             return self._zeros(vrs, type_)
         try:
@@ -1205,7 +1235,7 @@ class SlaveValues:
         except FmuError as exc:
             self._fail(str(exc))
 
-    def _set(self, vrs, values, type_):
+    def _set(self, vrs: list[int], values: list[Any], type_: str) -> None:
         if self._failed:
             return
         try:
@@ -1213,19 +1243,19 @@ class SlaveValues:
         except FmuError as exc:
             self._fail(str(exc))
 
-    def terminate(self):
+    def terminate(self) -> None:
         if not self._failed:
             self.rt.terminate()
 
     # the accessors whose names FMI 2 and FMI 3 share (the others are in fmi2.py / fmi3.py)
-    def get_boolean(self, vrs):
+    def get_boolean(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "bool")
 
-    def get_string(self, vrs):
+    def get_string(self, vrs: list[int]) -> list[Any]:
         return self._get(vrs, "string")
 
-    def set_boolean(self, vrs, values):
+    def set_boolean(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, [bool(v) for v in values], "bool")
 
-    def set_string(self, vrs, values):
+    def set_string(self, vrs: list[int], values: list[Any]) -> None:
         self._set(vrs, values, "string")
