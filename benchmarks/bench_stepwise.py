@@ -13,6 +13,11 @@ step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
      seed (decoding, the estimator's ``step_row`` fast path, or ``step`` for an estimator
      without it, and the action), the README's Gymnasium loop without the env's own cost.
 
+   * ``agent floor``: ``EstimatorAgent.act`` driving :class:`ConstantRow`, whose ``step_row``
+     returns one fixed row: the agent's own cost per step (decoding or the step view, the
+     CPU clock read twice, the action with its extras), to read the other agent rows
+     against.
+
    ``agent / batch`` is the figure the issue sets a goal for (<= 1.5). The last column is
    the largest position difference (m, local level) between the agent's solutions and
    the batch solutions over the episode: the step path must give the numbers of
@@ -50,6 +55,21 @@ from _empty_fmu import build_empty_fmu
 import numpy as np
 
 ESTIMATORS = ("lc-ekf", "tc-ekf", "tc-ukf", "along-track", "paper-ekf")
+FLOOR = "agent floor (constant step_row)"
+
+
+class ConstantRow:
+    """An estimator whose ``step_row`` returns one fixed row (no covariance, no NIS): what
+    ``EstimatorAgent.act`` costs by itself."""
+
+    def reset(self, context, prior) -> None:
+        self.row = np.array(prior.as_action(), dtype=float)
+
+    def step(self, measurement):
+        raise NotImplementedError("ConstantRow is driven through step_row")
+
+    def step_row(self, measurement):
+        return self.row, None, None, None
 
 
 def _position_error_m(a: np.ndarray, b: np.ndarray, earth) -> float:
@@ -128,6 +148,13 @@ def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, 
                 rows.append(act(o))
             times.setdefault((name, "agent"), []).append((clock() - t0) / n)
             solutions[(name, "agent")] = np.array(rows) * np.asarray(info["action_scale"])
+        agent = EstimatorAgent(ConstantRow())
+        agent.reset(info)
+        act = agent.act
+        t0 = clock()
+        for o in observations[:n]:
+            act(o)
+        times.setdefault((FLOOR, "agent"), []).append((clock() - t0) / n)
     lines = [f"paper-2012, {duration:g} s episode ({n} navigation steps), seed 0; CPU time per navigation "
              f"step, median of {rounds} interleaved round(s)", "",
              "| estimator | batch (us/step) | step (us/step) | agent (us/step) | step / batch | agent / batch "
@@ -140,6 +167,7 @@ def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, 
         diff = _position_error_m(solutions[(name, "agent")], solutions[(name, "batch")], context.earth)
         lines.append(f"| {name} | {b * 1e6:.1f} | {s * 1e6:.1f} | {a * 1e6:.1f} | {s / b:.2f} | {a / b:.2f} "
                      f"| {diff:.1e} |")
+    lines.append(f"| {FLOOR} | | | {statistics.median(times[(FLOOR, 'agent')]) * 1e6:.1f} | | | |")
     lines += ["", "Goal (issue 11): agent / batch <= 1.5 for every row."]
     lines += [""] + split_table(names, context, start, meas, observations, info, rounds)
     return lines, batch_cost
@@ -174,6 +202,19 @@ def split_table(names, context, start, meas, observations, info, rounds: int) ->
                         other += dt
                 times.setdefault((name, path + " epoch"), []).append(at_epoch / max(n_epoch, 1))
                 times.setdefault((name, path + " other"), []).append(other / max(len(meas) - n_epoch, 1))
+        agent = EstimatorAgent(ConstantRow())
+        agent.reset(info)
+        at_epoch = other = 0.0
+        for item, is_epoch in zip(observations[:len(meas)], epoch):
+            t0 = clock()
+            agent.act(item)
+            dt = clock() - t0
+            if is_epoch:
+                at_epoch += dt
+            else:
+                other += dt
+        times.setdefault((FLOOR, "agent epoch"), []).append(at_epoch / max(n_epoch, 1))
+        times.setdefault((FLOOR, "agent other"), []).append(other / max(len(meas) - n_epoch, 1))
     lines = [f"Where the step-wise time goes: each call timed alone (CPU clock around it), {n_epoch} steps "
              f"ending at a GNSS epoch and {len(meas) - n_epoch} others; median of {rounds} round(s)", "",
              "| estimator | step at an epoch (us) | step, other steps (us) | agent at an epoch (us) "
@@ -182,6 +223,8 @@ def split_table(names, context, start, meas, observations, info, rounds: int) ->
         v = [statistics.median(times[(name, k)]) * 1e6 for k in ("step epoch", "step other", "agent epoch",
                                                                    "agent other")]
         lines.append(f"| {name} | {v[0]:.0f} | {v[1]:.1f} | {v[2]:.0f} | {v[3]:.1f} |")
+    v = [statistics.median(times[(FLOOR, k)]) * 1e6 for k in ("agent epoch", "agent other")]
+    lines.append(f"| {FLOOR} | | | {v[0]:.0f} | {v[1]:.1f} |")
     return lines
 
 

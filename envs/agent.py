@@ -37,7 +37,7 @@ class EstimateAction(np.ndarray):
     extras: tuple = (None, None, None, None)
 
     @classmethod
-    def of(cls, estimate, cpu_s: float | None = None, scale=None) -> "EstimateAction":
+    def of(cls, estimate: Estimate, cpu_s: float | None = None, scale: np.ndarray | None = None) -> "EstimateAction":
         """From an :class:`~navsim.estimators.base.Estimate`, divided by ``scale``
         (the env's ``info["action_scale"]``; None: physical units)."""
         v = estimate.velocity_n
@@ -46,11 +46,11 @@ class EstimateAction(np.ndarray):
                         estimate.pitch, estimate.roll], dtype=float)
         if scale is not None:
             out /= scale
-        out = out.view(cls)
-        out.extras = (estimate.covariance, estimate.nis, estimate.nis_dof or 0, cpu_s)
-        return out
+        action = out.view(cls)
+        action.extras = (estimate.covariance, estimate.nis, estimate.nis_dof or 0, cpu_s)
+        return action
 
-    def __array_finalize__(self, obj):
+    def __array_finalize__(self, obj: Any) -> None:
         # a view or copy of an EstimateAction keeps its extras; anything else has the
         # class default (no instance attribute set: the cheap case of act's per-step view)
         if isinstance(obj, EstimateAction):
@@ -79,6 +79,14 @@ class EstimatorAgent:
     **options
         Options of a named estimator.
 
+    Notes
+    -----
+    An estimator with ``step_row`` may name, as ``step_row_fields`` (a tuple of
+    :data:`IMU_FIELDS`), the IMU fields its ``step_row`` reads on a step without a GNSS
+    epoch: the reused measurement object then reshapes only those in advance and the others
+    on reading (the same values either way: a hint on cost, not on content). Without it all
+    four are reshaped at every step.
+
     Examples
     --------
     >>> import gymnasium as gym, navsim
@@ -98,7 +106,7 @@ class EstimatorAgent:
         if not (callable(getattr(estimator, "reset", None)) and callable(getattr(estimator, "step", None))):
             raise ConfigError("estimator", "an object with reset(context, prior) and step(measurement)", estimator)
         self.estimator = estimator
-        self._last: tuple | None = None
+        self._last: tuple | Estimate | None = None
 
     @property
     def last_estimate(self) -> Estimate | None:
@@ -126,7 +134,11 @@ class EstimatorAgent:
         self._step = 0
         self._estimator_step = self.estimator.step
         self._step_row = row_stepping(self.estimator)
-        self._view = _StepView(self.codec)
+        eager = _eager_fields(self.estimator)
+        self._view = _view_class(eager)(self.codec, eager)
+        # what act() reads per step, in one tuple (one attribute lookup instead of five)
+        self._fast = (None if self._step_row is None
+                      else (self._step_row, self._view.fill, self._decode, self._scale, time.process_time))
         self._last = None
 
     def measurement(self, obs: dict) -> Measurement:
@@ -144,32 +156,41 @@ class EstimatorAgent:
         without a GNSS epoch is handed over as views of the observation's arrays in a
         reused measurement object (no :class:`~navsim.types.Measurement` and no
         :class:`~navsim.types.Estimate` built); otherwise the decoded measurement goes to
-        ``step``.
+        ``step``. The CPU-time extra is ``time.process_time()`` read just before and just
+        after the estimator's call (decoding and the action are not in it), as
+        :func:`navsim.episode.run_episode` measures ``step``.
         """
         k = self._step
         self._step = k + 1
-        step_row = self._step_row
-        clock = time.process_time
-        if step_row is None:
-            m = self._decode(obs, k)  # self.measurement(obs), without a call of its own
-            t0 = clock()
-            estimate = self._estimator_step(m)
-            cpu = clock() - t0
-            self._last = estimate
-            return EstimateAction.of(estimate, cpu, self._scale)
-        if obs["gnss_new_epoch"][0]:
-            m = self._decode(obs, k)
-        else:
-            m = self._view.fill(obs, k)
+        fast = self._fast
+        if fast is None:
+            return self._act_step(obs, k)
+        step_row, fill, decode, scale, clock = fast
+        m = decode(obs, k) if obs["gnss_new_epoch"].item() else fill(obs, k)
         t0 = clock()
         row, cov, nis, dof = step_row(m)
         cpu = clock() - t0
         self._last = (m.t, row, cov, nis, dof)
-        out = (row / self._scale).view(EstimateAction)
+        out = (row / scale).view(EstimateAction)
         out.extras = (cov, nis, dof or 0, cpu)
         return out
 
+    def _act_step(self, obs: dict, k: int) -> EstimateAction:
+        """:meth:`act` of an estimator without ``step_row``: ``step`` on the decoded measurement."""
+        m = self._decode(obs, k)
+        clock = time.process_time
+        t0 = clock()
+        estimate = self._estimator_step(m)
+        cpu = clock() - t0
+        self._last = estimate
+        return EstimateAction.of(estimate, cpu, self._scale)
+
     __call__ = act
+
+
+IMU_FIELDS = ("dtheta_r", "dv_r", "dtheta_sub", "dv_sub")
+"""The IMU fields of :class:`~navsim.types.Measurement` (each an (n, 3) reshape of its flat
+observation entry)."""
 
 
 class _StepView:
@@ -177,18 +198,27 @@ class _StepView:
     refilled for every such step with views of the observation's arrays (the decoding of
     :meth:`navsim.signals.ObservationCodec.decode`, without building a value). The optional
     sensors' readings are the codec's :attr:`~navsim.signals.ObservationCodec.measurement_signals`
-    (each declared once in :mod:`navsim.signals`); a field of a sensor the scenario lacks is None."""
+    (each declared once in :mod:`navsim.signals`); a field of a sensor the scenario lacks is None.
 
-    def __init__(self, codec: ObservationCodec) -> None:
+    The IMU fields named in ``eager`` are set by :meth:`fill`; the others (an estimator's
+    ``step_row_fields`` leaves them out, see :class:`EstimatorAgent`) are made on reading,
+    the same reshape of the same observation entry, by the properties of :func:`_view_class`."""
+
+    def __init__(self, codec: ObservationCodec, eager: tuple[str, ...] = IMU_FIELDS) -> None:
         self.dt = float(codec.layout.nav_period_s)
         self.gnss = None
         for sig in MEASUREMENT_SIGNALS:
             setattr(self, sig.measurement, None)
         self._optional = tuple((sig.name, sig.measurement) for sig in codec.measurement_signals)
+        self._eager = eager
+        self._obs: dict = {}
 
     def fill(self, obs: dict, step: int) -> "_StepView":
+        """Refill from observation ``obs`` of step ``step``; returns the view itself."""
         self.step = step
         self.t = obs["t"].item()  # float(obs["t"][0]): the same Python float
+        # attribute stores, not writes into __dict__ (that would turn off CPython's inline
+        # attribute values for the object, and every read of the estimator gets slower)
         self.dtheta_r = obs["dtheta_r"].reshape(-1, 3)
         self.dv_r = obs["dv_r"].reshape(-1, 3)
         self.dtheta_sub = obs["dtheta_sub"].reshape(-1, 3)
@@ -198,8 +228,51 @@ class _StepView:
             setattr(self, field, None if value is None else float(value[0]))
         return self
 
+    def _fill_eager(self, obs: dict, step: int) -> "_StepView":
+        """:meth:`fill` of a view whose IMU fields outside ``eager`` are made on reading."""
+        self.step = step
+        self.t = obs["t"].item()
+        self._obs = obs
+        for key in self._eager:
+            setattr(self, key, obs[key].reshape(-1, 3))
+        for key, field in self._optional:
+            value = obs.get(key)
+            setattr(self, field, None if value is None else float(value[0]))
+        return self
 
-def _as_agent(agent_or_estimator: Any):
+
+def _lazy_field(key: str) -> property:
+    def get(self: _StepView) -> np.ndarray:
+        return self._obs[key].reshape(-1, 3)
+
+    return property(get, doc=f"``{key}`` of the observation as (n, 3), made on reading")
+
+
+_VIEW_CLASSES: dict[tuple[str, ...], type] = {}
+
+
+def _view_class(eager: tuple[str, ...]) -> type:
+    """The :class:`_StepView` class whose IMU fields outside ``eager`` are properties (made once
+    per field set)."""
+    cls = _VIEW_CLASSES.get(eager)
+    if cls is None:
+        lazy: dict[str, Any] = {key: _lazy_field(key) for key in IMU_FIELDS if key not in eager}
+        if lazy:
+            lazy["fill"] = _StepView._fill_eager
+        cls = _VIEW_CLASSES[eager] = type("_StepView", (_StepView,), lazy) if lazy else _StepView
+    return cls
+
+
+def _eager_fields(estimator: Any) -> tuple[str, ...]:
+    """The IMU fields ``fill`` sets for ``estimator``: its ``step_row_fields`` among
+    :data:`IMU_FIELDS` (all of them when it declares none)."""
+    declared = getattr(estimator, "step_row_fields", None)
+    if declared is None:
+        return IMU_FIELDS
+    return tuple(key for key in IMU_FIELDS if key in tuple(declared))
+
+
+def _as_agent(agent_or_estimator: Any) -> Any:
     if isinstance(agent_or_estimator, (str, EstimatorAgent)):
         return agent_or_estimator if isinstance(agent_or_estimator, EstimatorAgent) else EstimatorAgent(agent_or_estimator)
     if callable(getattr(agent_or_estimator, "act", None)) and callable(getattr(agent_or_estimator, "reset", None)):

@@ -563,6 +563,7 @@ class AlongTrackFilter(NoiseScalable):
     """
 
     NOISE_PROCESS = ('q_v', 'q_b')
+    step_row_fields = ("dv_r",)  # the IMU field step_row reads between GNSS epochs (navsim.envs.EstimatorAgent)
     NOISE_MEASUREMENT_SIGMA = ('sigma_pr', 'sigma_rate')
     # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
