@@ -118,6 +118,18 @@ def _check_truth_inputs(t_start: ArrayLike, dtheta_r: ArrayLike, dv_r: ArrayLike
     return t_start, dtheta_r, dv_r, omega_b, f_b
 
 
+def _bias(s_idx: int, sensor: SensorErrors, turn_on: NDArray, gm_start: NDArray, sigma_gm: NDArray,
+          rrw_start: NDArray, rrw_gain: NDArray, varying: NDArray) -> NDArray | None:
+    """Sensor ``s_idx``'s bias during each sample, (B, n, 3): constant + turn-on +
+    Gauss-Markov + rate random walk (``varying``); ``None`` when every term is zero for
+    every member (nothing to add)."""
+    constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
+    if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
+            or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
+        return constant[:, None] + varying[:, :, s_idx]
+    return None
+
+
 def _kernel_base(s_idx: int, sensor: SensorErrors, out: NDArray, rate: NDArray, order: int, turn_on: NDArray,
                  gm_start: NDArray, sigma_gm: NDArray, rrw_start: NDArray, rrw_gain: NDArray, varying: NDArray,
                  h_r_fact: NDArray, t_start: NDArray, t_end: NDArray, h: float) -> tuple[NDArray, NDArray]:
@@ -129,10 +141,8 @@ def _kernel_base(s_idx: int, sensor: SensorErrors, out: NDArray, rate: NDArray, 
     (``out`` may be the caller's array).
     """
     base_r, base_rate = out[None], rate[None]
-    constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
-    if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
-            or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
-        bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
+    bias = _bias(s_idx, sensor, turn_on, gm_start, sigma_gm, rrw_start, rrw_gain, varying)
+    if bias is not None:
         base_r = base_r + bias[:, :, None, :] * h_r_fact[None, None, :, None]  # b h^r / r!
         base_rate = base_rate + bias
     for harm in sensor.vibration:
@@ -242,25 +252,11 @@ def apply_imu_errors_batch(
         Arrays with a leading member axis: ``dtheta_r`` (B, n, R, 3), ``rate_b`` (B, n, 3).
     new_states : list of B ImuState
     """
-    h = check_h(h)
-    if not isinstance(model, ImuErrorModel):
-        raise ConfigError("model", "an ImuErrorModel", type(model).__name__)
     states = list(states)
-    rngs = list(rngs)
-    if not states or len(rngs) != len(states):
-        raise ConfigError("rngs", f"one generator per state ({len(states)}, at least one)", len(rngs))
-    for state in states:
-        if not isinstance(state, ImuState):
-            raise ConfigError("state", "an ImuState", type(state).__name__)
-    index = states[0].sample_index
-    if any(s.sample_index != index for s in states):
-        raise ConfigError("states", "states at the same sample_index (lockstep)",
-                          sorted({s.sample_index for s in states}))
-    if len(rngs) != len(states):
-        raise ConfigError("rngs", f"one generator per state ({len(states)})", len(rngs))
-    output, new_state = apply_imu_errors_batch_state(t_start, h, dtheta_r, dv_r, omega_b, f_b, model,
-                                                     BatchImuState.of(states), rngs, out=out)
-    return output, (states if new_state.sample_index == index else new_state.members())
+    state = BatchImuState.of(states)  # checks the states (ImuState, at least one, lockstep)
+    output, new_state = apply_imu_errors_batch_state(t_start, h, dtheta_r, dv_r, omega_b, f_b, model, state, rngs,
+                                                     out=out)
+    return output, (states if new_state.sample_index == state.sample_index else new_state.members())
 
 
 def apply_imu_errors_batch_state(
@@ -278,10 +274,13 @@ def apply_imu_errors_batch_state(
     """:func:`apply_imu_errors_batch` on the members' states as one :class:`BatchImuState`
     (no per-member state objects; the simulator batch carries its states this way).
 
-    The same numbers: :func:`apply_imu_errors_batch` stacks its states and calls this.
-    ``rngs``: one generator per row of ``state``. Returns the output and the new state.
+    The same numbers: :func:`apply_imu_errors_batch` stacks its states and calls this
+    (the arguments are checked here, for both). ``rngs``: one generator per row of
+    ``state``. Returns the output and the new state.
     """
     h = check_h(h)
+    if not isinstance(model, ImuErrorModel):
+        raise ConfigError("model", "an ImuErrorModel", type(model).__name__)
     rngs = list(rngs)
     members = state.size
     if len(rngs) != members:
@@ -389,10 +388,8 @@ def apply_imu_errors_batch_state(
 
         # Biases: constant + turn-on + Gauss-Markov + rate random walk (members without
         # a bias add exact zeros).
-        constant = sensor.bias + turn_on[:, s_idx]  # (B, 3)
-        if np.any(constant) or np.any(gm_start[:, s_idx]) or np.any(sigma_gm[s_idx]) \
-                or np.any(rrw_start[:, s_idx]) or np.any(rrw_gain[s_idx]):
-            bias = constant[:, None] + varying[:, :, s_idx]  # (B, n, 3)
+        bias = _bias(s_idx, sensor, turn_on, gm_start, sigma_gm, rrw_start, rrw_gain, varying)
+        if bias is not None:
             out_r += bias[None] * h_r_fact[:, None, None, None]  # b h^r / r!
             rate += bias
 

@@ -5,7 +5,7 @@ states, quantizer carries; chunk-invariant generation) and the sensor output (:c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Sequence, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,9 +15,47 @@ from .._common import frozen_array
 from .error_model import ImuErrorModel, level_lsb
 from .integrals import MAX_ORDER, check_h, check_int
 
+_State = TypeVar("_State", bound="_ImuStateFields")
+
+ARRAY_SHAPES: dict[str, tuple[int, ...]] = {
+    "turn_on_bias": (2, 3),
+    "bias_gauss_markov": (2, 3),
+    "bias_random_walk": (2, 3),
+    "quant_accumulator": (2, MAX_ORDER + 1, 3),
+    "quant_count": (2, MAX_ORDER + 1, 3),
+}
+"""The array fields of one IMU's error state and their shapes (:class:`ImuState`; a
+:class:`BatchImuState` has the same fields with a leading member axis)."""
+
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ImuState:
+class _ImuStateFields:
+    """The fields :class:`ImuState` and :class:`BatchImuState` share (one source for both)."""
+
+    sample_index: int
+    turn_on_bias: NDArray[np.float64]
+    bias_gauss_markov: NDArray[np.float64]
+    bias_random_walk: NDArray[np.float64]
+    quant_accumulator: NDArray[np.float64]
+    quant_count: NDArray[np.float64]
+
+    def _arrays(self) -> tuple[NDArray[np.float64], ...]:
+        """The array fields in the order of :data:`ARRAY_SHAPES`."""
+        return tuple(getattr(self, name) for name in ARRAY_SHAPES)
+
+    @classmethod
+    def _unchecked(cls: type[_State], sample_index: int, arrays: Sequence[NDArray]) -> _State:
+        """An instance holding ``arrays`` as they are (the caller guarantees shapes and
+        read-only flags), without ``__post_init__``'s checks and copies."""
+        state = object.__new__(cls)
+        for name, value in zip(ARRAY_SHAPES, arrays, strict=True):
+            object.__setattr__(state, name, value)
+        object.__setattr__(state, "sample_index", sample_index)
+        return state
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ImuState(_ImuStateFields):
     """Everything recursive in the IMU error model. Index 0 = gyro, 1 = accelerometer.
 
     Parameters
@@ -38,24 +76,10 @@ class ImuState:
         ``quant_accumulator - lsb_level * quant_count`` (see :meth:`quantization_residual`).
     """
 
-    sample_index: int
-    turn_on_bias: NDArray[np.float64]
-    bias_gauss_markov: NDArray[np.float64]
-    bias_random_walk: NDArray[np.float64]
-    quant_accumulator: NDArray[np.float64]
-    quant_count: NDArray[np.float64]
-
     def __post_init__(self) -> None:
         index = check_int("state.sample_index", self.sample_index, 0)
         object.__setattr__(self, "sample_index", index)
-        shapes = {
-            "turn_on_bias": (2, 3),
-            "bias_gauss_markov": (2, 3),
-            "bias_random_walk": (2, 3),
-            "quant_accumulator": (2, MAX_ORDER + 1, 3),
-            "quant_count": (2, MAX_ORDER + 1, 3),
-        }
-        for name, shape in shapes.items():
+        for name, shape in ARRAY_SHAPES.items():
             arr = frozen_array(getattr(self, name))
             if arr.shape != shape:
                 raise ConfigError(f"state.{name}", f"shape {shape}", arr.shape)
@@ -76,29 +100,6 @@ class ImuState:
         zeros_q = np.zeros((2, MAX_ORDER + 1, 3))
         return cls(0, turn_on, gauss_markov, np.zeros((2, 3)), zeros_q, zeros_q)
 
-    @classmethod
-    def _batch(cls, sample_index: int, turn_on: Sequence[NDArray], gauss_markov: NDArray, random_walk: NDArray,
-               accumulator: NDArray, count: NDArray) -> list[ImuState]:
-        """The states of B members after a batched call: each (B, ...) array is copied once
-        to a read-only array and member j gets read-only views of row j (the shapes are
-        those of the batch arrays by construction, so the per-member checks are skipped).
-        ``turn_on`` holds the members' own (already read-only) turn-on biases."""
-        rows = []
-        for a in (gauss_markov, random_walk, accumulator, count):
-            a = np.array(a, dtype=float, copy=True)
-            a.setflags(write=False)
-            rows.append(a)
-        index = int(sample_index)
-        out = []
-        for j, t in enumerate(turn_on):
-            state = object.__new__(cls)
-            for name, value in zip(("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator",
-                                    "quant_count"), (t, rows[0][j], rows[1][j], rows[2][j], rows[3][j])):
-                object.__setattr__(state, name, value)
-            object.__setattr__(state, "sample_index", index)
-            out.append(state)
-        return out
-
     def quantization_residual(
         self, model: ImuErrorModel, h: float, order: int
     ) -> NDArray[np.float64]:
@@ -116,31 +117,21 @@ class ImuState:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ImuState) or other.sample_index != self.sample_index:
             return False
-        return all(
-            np.array_equal(getattr(self, n), getattr(other, n))
-            for n in ("turn_on_bias", "bias_gauss_markov", "bias_random_walk",
-                      "quant_accumulator", "quant_count")
-        )
+        return all(np.array_equal(a, b) for a, b in zip(self._arrays(), other._arrays()))
 
     __hash__ = None  # type: ignore[assignment]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class BatchImuState:
+class BatchImuState(_ImuStateFields):
     """The :class:`ImuState` of B lockstep members as (B, ...) arrays (the batched error
     model's working form: no per-member objects between calls).
 
-    ``turn_on_bias``, ``bias_gauss_markov``, ``bias_random_walk``: (B, 2, 3);
+    The fields of :class:`ImuState` (:data:`ARRAY_SHAPES`), each with a leading member
+    axis: ``turn_on_bias``, ``bias_gauss_markov``, ``bias_random_walk``: (B, 2, 3);
     ``quant_accumulator``, ``quant_count``: (B, 2, MAX_ORDER + 1, 3); one ``sample_index``.
     Row j is member j's :class:`ImuState` (:meth:`member`). The arrays are read-only.
     """
-
-    sample_index: int
-    turn_on_bias: NDArray[np.float64]
-    bias_gauss_markov: NDArray[np.float64]
-    bias_random_walk: NDArray[np.float64]
-    quant_accumulator: NDArray[np.float64]
-    quant_count: NDArray[np.float64]
 
     @property
     def size(self) -> int:
@@ -149,13 +140,22 @@ class BatchImuState:
 
     @classmethod
     def of(cls, states: Sequence[ImuState]) -> BatchImuState:
-        """Stack B states (at one ``sample_index``; the caller checks it)."""
+        """Stack B >= 1 :class:`ImuState` at one ``sample_index`` (lockstep; checked)."""
+        if not states:
+            raise ConfigError("states", "at least one ImuState", "none")
+        for state in states:
+            if not isinstance(state, ImuState):
+                raise ConfigError("state", "an ImuState", type(state).__name__)
+        index = states[0].sample_index
+        if any(s.sample_index != index for s in states):
+            raise ConfigError("states", "states at the same sample_index (lockstep)",
+                              sorted({s.sample_index for s in states}))
         arrays = []
-        for name in ("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator", "quant_count"):
-            a = np.stack([getattr(s, name) for s in states])
+        for rows in zip(*(s._arrays() for s in states)):
+            a = np.stack(rows)
             a.setflags(write=False)
             arrays.append(a)
-        return cls(int(states[0].sample_index), *arrays)
+        return cls._unchecked(int(index), arrays)
 
     @classmethod
     def _owned(cls, sample_index: int, turn_on: NDArray, gauss_markov: NDArray, random_walk: NDArray,
@@ -168,15 +168,11 @@ class BatchImuState:
                 a = np.array(a, dtype=float, copy=True)
                 a.setflags(write=False)
             arrays.append(a)
-        return cls(int(sample_index), *arrays)
+        return cls._unchecked(int(sample_index), arrays)
 
     def member(self, j: int) -> ImuState:
         """Member j's :class:`ImuState` (read-only views of row j)."""
-        state = object.__new__(ImuState)
-        for name in ("turn_on_bias", "bias_gauss_markov", "bias_random_walk", "quant_accumulator", "quant_count"):
-            object.__setattr__(state, name, getattr(self, name)[j])
-        object.__setattr__(state, "sample_index", self.sample_index)
-        return state
+        return ImuState._unchecked(self.sample_index, [a[j] for a in self._arrays()])
 
     def members(self) -> list[ImuState]:
         """Every member's :class:`ImuState`."""
