@@ -33,7 +33,7 @@ covariance, nis, nis_dof)`` does what ``step`` does and returns the solution as 
 (:meth:`NavSolution.as_action`) with its covariance and NIS, without the
 :class:`Estimate` and its ``extra`` diagnostics; :class:`navsim.envs.EstimatorAgent` and the
 estimator FMU use it when the estimator's ``step`` and ``step_row`` come from the same
-class. lc-ekf, tc-ekf, tc-ukf, along-track and paper-ekf implement it.
+class. lc-ekf, tc-ekf, tc-ukf, along-track, paper-ekf, gnss-ls and gnss-cv implement it.
 
 The values themselves (context, measurements, solutions) live in :mod:`navsim.types`
 and are re-exported here; ``Prior`` and ``Estimate`` are two names of
@@ -107,7 +107,8 @@ the step and its degrees of freedom (None when no update happened)."""
 
 @runtime_checkable
 class RowStepping(Protocol):
-    """The step-wise fast path (optional; the five INS/track filters have it).
+    """The step-wise fast path (optional; the five INS/track filters and the two GNSS-only
+    estimators have it).
 
     ``step_row(measurement)`` processes one navigation step exactly as ``step`` does (the
     same numbers, the same state afterwards) and returns the solution as a

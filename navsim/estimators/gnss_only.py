@@ -18,6 +18,15 @@
     prediction to the step time (closed form, the same as filterpy's predict over that
     span).
 
+Step-wise (``step``, and ``step_row``: :class:`~navsim.estimators.base.RowStepping`), a
+step without a GNSS epoch costs no batch: between usable fixes the estimate is a function
+of the step time alone, so the rows of the next ``gnss_period_s / nav_period_s`` steps are
+predicted in one call of the batch's own prediction, at the times ``(step + 1 + j) dt`` the
+simulator gives its steps, and a step whose time is the next one predicted takes its row
+(any other time is predicted alone; a fix or a changed option starts over). The
+prediction is elementwise over the steps, so the rows are those of ``step_batch`` bit for
+bit.
+
 Neither estimates attitude: heading, pitch and roll are ``nan`` and so are the attitude
 rows and columns of the 9 x 9 covariance (metrics skip them). The course over ground
 ``atan2(vE, vN)`` is a heading only for a vehicle without sideslip; it is not reported.
@@ -41,7 +50,7 @@ import numpy as np
 from ..earth import mat_en
 from ..errors import ConfigError
 from ..option_checks import check_integer, check_nonnegative_finite, check_positive_finite
-from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior
+from .base import Context, Estimate, EstimateBatch, Measurement, MeasurementBatch, NoiseScalable, Prior, StepRow, row_of
 from .loosely import gnss_fixes
 
 if TYPE_CHECKING:
@@ -83,6 +92,40 @@ def _estimate(t: float, row: np.ndarray, cov: np.ndarray, nis: float, dof: int, 
                     nis=float(nis) if has else None, nis_dof=int(dof) if has else None, extra=extra)
 
 
+class _RowsAhead:
+    """The rows of the steps between usable fixes, predicted ahead (the step-wise path of
+    both estimators, see the module docstring). ``key``: the time of the last fix (a new
+    fix changes it) and the options the prediction reads; a changed key starts over."""
+
+    __slots__ = ("span", "key", "t", "solution", "covariance", "next")
+
+    def __init__(self, span: int) -> None:
+        self.span = span
+        self.key: tuple | None = None
+        self.t: np.ndarray = np.empty(0)
+        self.solution: np.ndarray = np.empty((0, 9))
+        self.covariance: np.ndarray = np.empty((0, 9, 9))
+        self.next = 0
+
+    def row(self, m: Measurement, key: tuple, predict: Predict) -> tuple[np.ndarray, np.ndarray]:
+        """``(row (9,), covariance (9, 9))`` of step ``m`` (copies: the caller's)."""
+        i = self.next
+        if self.key != key or i >= len(self.t) or self.t[i] != m.t:
+            t = (np.arange(self.span) + (int(m.step) + 1)) * m.dt  # the simulator's (steps + 1) * dt
+            if t[0] != m.t:  # times of another source: this step alone
+                t = np.array([float(m.t)])
+            self.t, self.key, i = t, key, 0
+            self.solution, self.covariance = np.empty((len(t), 9)), np.empty((len(t), 9, 9))
+            predict(t, self.solution, self.covariance)
+        self.next = i + 1
+        return self.solution[i].copy(), self.covariance[i].copy()
+
+
+def _span(context: Context) -> int:
+    """Steps per GNSS period: how many rows :class:`_RowsAhead` predicts in one call."""
+    return max(1, min(10_000, round(context.gnss_period_s / context.nav_period_s)))
+
+
 def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndarray, predict: Predict,
                 take_fix: TakeFix) -> EstimateBatch:
     """The batch loop both GNSS-only estimators share.
@@ -114,7 +157,47 @@ def _over_fixes(batch: MeasurementBatch, min_satellites: int, initial_e: np.ndar
     return EstimateBatch(solution, covariance, nis, nis_dof)
 
 
-class GnssLeastSquares(NoiseScalable):
+class _GnssOnly(NoiseScalable):
+    """``step`` and ``step_row`` of both GNSS-only estimators: a step without an epoch
+    from the rows predicted ahead (:class:`_RowsAhead`), any other through ``step_batch``
+    on a batch of one. A subclass sets ``_ahead``, ``_n_valid`` and ``_t`` (the time of the
+    last fix, of the prior before the first) in ``reset``, ``_t`` at each fix, and defines
+    ``step_batch``, ``_predict`` (the batch's prediction, a :data:`Predict`) and ``_options``
+    (the options ``_predict`` reads)."""
+
+    _ahead: _RowsAhead | None = None  # set by reset
+    _n_valid: int
+    _t: float
+
+    def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
+        raise NotImplementedError
+
+    def _predict(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _options(self) -> tuple:
+        raise NotImplementedError
+
+    def step(self, measurement: Measurement) -> Estimate:
+        """One navigation step (without an epoch: a row predicted ahead, see the module)."""
+        if measurement.gnss is None and self._ahead is not None:
+            row, cov = self._ahead.row(measurement, (self._t, *self._options()), self._predict)
+            return _estimate(measurement.t, row, cov, math.nan, 0, {"n_valid": self._n_valid})
+        out = self.step_batch(_single(measurement))
+        assert out.covariance is not None  # _over_fixes fills it
+        return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
+                         {"n_valid": self._n_valid})
+
+    def step_row(self, measurement: Measurement) -> StepRow:
+        """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
+        :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers."""
+        if measurement.gnss is None and self._ahead is not None:
+            row, cov = self._ahead.row(measurement, (self._t, *self._options()), self._predict)
+            return row, cov, None, None
+        return row_of(self.step(measurement))
+
+
+class GnssLeastSquares(_GnssOnly):
     """Per-epoch LS fix, extrapolated (or held) between epochs.
 
     Parameters
@@ -160,19 +243,16 @@ class GnssLeastSquares(NoiseScalable):
         self._vel_e = m.T @ np.asarray(prior.velocity_n, dtype=float)
         self._p_pos, self._p_vel = cov[:3, :3].copy(), cov[3:6, 3:6].copy()
         self._n_valid = 0
+        self._ahead = _RowsAhead(_span(context))
 
-    def step(self, measurement: Measurement) -> Estimate:
-        """One navigation step."""
-        out = self.step_batch(_single(measurement))
-        assert out.covariance is not None  # _over_fixes fills it
-        return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
-                         {"n_valid": self._n_valid})
+    def _options(self) -> tuple:
+        return (self.extrapolate, self.accel_psd)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
         """n steps at once (fixes of all epochs in one vectorised call)."""
         if self.context is None:
             raise ConfigError("GnssLeastSquares", "reset(context, prior) before stepping", "no reset")
-        return _over_fixes(batch, self.min_satellites, self._initial_e, self._extrapolate, self._take_fix)
+        return _over_fixes(batch, self.min_satellites, self._initial_e, self._predict, self._take_fix)
 
     def _take_fix(self, t: float, index: int, e: int, fixes: tuple, nis: np.ndarray, nis_dof: np.ndarray) -> None:
         _, pos_e, cov_pos, vel_e, cov_vel, n_valid = fixes
@@ -183,7 +263,7 @@ class GnssLeastSquares(NoiseScalable):
         self._p_pos = self.sigma_pos**2 * (m @ cov_pos[e] @ m.T)
         self._p_vel = self.sigma_vel**2 * (m @ cov_vel[e] @ m.T)
 
-    def _extrapolate(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
+    def _predict(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
         tau = (t - self._t) if self.extrapolate else np.zeros_like(t)
         pos_e = self._pos_e + tau[:, None] * self._vel_e
         lat, lon, h = self.earth.ecef_to_geodetic(pos_e)
@@ -200,7 +280,7 @@ class GnssLeastSquares(NoiseScalable):
         covariance[:, 3:6, 3:6] += (q * tt) * eye
 
 
-class GnssConstantVelocity(NoiseScalable):
+class GnssConstantVelocity(_GnssOnly):
     """Constant-velocity Kalman filter (filterpy) on the LS position and velocity fixes.
 
     Parameters
@@ -249,6 +329,7 @@ class GnssConstantVelocity(NoiseScalable):
         self._initial_e = pos_e
         self._t = float(prior.t)
         self._n_valid = 0
+        self._ahead = _RowsAhead(_span(context))
 
     def _fq(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
         # x' = F x: r += v tau; Q of white acceleration q: [[t^3/3, t^2/2], [t^2/2, t]] q
@@ -261,18 +342,14 @@ class GnssConstantVelocity(NoiseScalable):
         Q[3:, 3:] = q * tau * np.eye(3)
         return F, Q
 
-    def step(self, measurement: Measurement) -> Estimate:
-        """One navigation step."""
-        out = self.step_batch(_single(measurement))
-        assert out.covariance is not None  # _over_fixes fills it
-        return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
-                         {"n_valid": self._n_valid})
+    def _options(self) -> tuple:
+        return (self.accel_psd,)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
         """n steps at once: filterpy predict/update at epochs, closed-form prediction between."""
         if self.kf is None:
             raise ConfigError("GnssConstantVelocity", "reset(context, prior) before stepping", "no reset")
-        return _over_fixes(batch, self.min_satellites, self._initial_e, self._predicted, self._take_fix)
+        return _over_fixes(batch, self.min_satellites, self._initial_e, self._predict, self._take_fix)
 
     def _take_fix(self, t: float, index: int, e: int, fixes: tuple, nis: np.ndarray, nis_dof: np.ndarray) -> None:
         _, pos_e, cov_pos, vel_e, cov_vel, n_valid = fixes
@@ -295,7 +372,7 @@ class GnssConstantVelocity(NoiseScalable):
         nis_dof[index] = kf.dim_z
         self._n_valid = int(n_valid[e])
 
-    def _predicted(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
+    def _predict(self, t: np.ndarray, solution: np.ndarray, covariance: np.ndarray) -> None:
         """The prediction of the current filter state to times t (no state change)."""
         kf = self.kf
         assert kf is not None  # step_batch checked the reset

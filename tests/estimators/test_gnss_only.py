@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from navsim.episode import make_context, measurement_batch, measurements, run_episode
 from navsim.estimators import make
+from navsim.estimators.base import row_of, row_stepping
 from navsim.metrics import error_vector, nees
 from navsim.scenario import load_scenario
 from navsim.simulator import Simulator
@@ -83,3 +86,135 @@ def test_step_batch_equals_repeated_step_through_an_outage(name):
     assert_same_arithmetic(out.covariance, [s.covariance for s in steps])
     # before the first fix the prior is extrapolated with the prior covariance
     assert np.allclose(out.covariance[0, :3, :3], start.prior.covariance[:3, :3], rtol=0.01)
+
+
+def _slice(batch, a, b):
+    """Steps a..b of a MeasurementBatch (epochs re-indexed)."""
+    return dataclasses.replace(
+        batch, step=batch.step[a:b], t=batch.t[a:b], dtheta_r=batch.dtheta_r[a:b], dv_r=batch.dv_r[a:b],
+        dtheta_sub=batch.dtheta_sub[a:b], dv_sub=batch.dv_sub[a:b],
+        gnss=tuple((j - a, obs) for j, obs in batch.gnss if a <= j < b))
+
+
+def _rows(results):
+    """Solution rows, covariances, NIS and dof of step-wise results (Estimate or StepRow)."""
+    rows, covs, nis, dof = [], [], [], []
+    for r in results:
+        row, cov, n, d = row_of(r) if not isinstance(r, tuple) else r
+        rows.append(row)
+        covs.append(cov)
+        nis.append(np.nan if n is None else n)
+        dof.append(d or 0)
+    return np.array(rows), np.array(covs), np.array(nis), np.array(dof)
+
+
+@pytest.mark.parametrize("name,options", [("gnss-ls", {}), ("gnss-ls", {"extrapolate": False}), ("gnss-cv", {})])
+def test_step_row_and_step_equal_step_batch_bit_for_bit(name, options):
+    """The step-wise path (rows of the steps between fixes predicted ahead) gives the
+    batch's numbers: the same prediction, elementwise over the steps, so bit for bit,
+    through epochs and a 3-s outage; ``step_row`` is the agent's fast path."""
+    sc = _scenario(8.0, outages=[(2.5, 5.5)])
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    chunk = next(iter(sim.chunks(10_000)))
+    a, b, c = (make(name, **options) for _ in range(3))
+    for est in (a, b, c):
+        est.reset(ctx, start.prior)
+    assert row_stepping(b) is not None
+    out = a.step_batch(measurement_batch(chunk, prn, sc.timing.nav_period_s))
+    ms = list(measurements(chunk, prn, sc.timing.nav_period_s))
+    for results in ([b.step_row(m) for m in ms], [c.step(m) for m in ms]):
+        rows, covs, nis, dof = _rows(results)
+        assert_same_arithmetic(rows, out.solution)
+        assert_same_arithmetic(covs, out.covariance)
+        assert_same_arithmetic(nis, out.nis)
+        assert_same_arithmetic(dof, out.nis_dof)
+    assert len(b._ahead.t) == b._ahead.span > 1  # the rows were predicted ahead
+
+
+@pytest.mark.parametrize("name", ["gnss-ls", "gnss-cv"])
+def test_step_wise_times_of_another_source_and_a_changed_option(name):
+    """Steps at times other than the simulator's ``(step + 1) dt`` are predicted alone, and
+    an option changed between epochs (``set_noise_scale``: gnss-cv's ``accel_psd``; gnss-ls
+    ``accel_psd`` by hand) is used from the next step on: still the batch's numbers."""
+    sc = _scenario(4.0)
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    chunk = next(iter(sim.chunks(10_000)))
+    dt = sc.timing.nav_period_s
+    batch = measurement_batch(chunk, prn, dt)
+    shifted = dataclasses.replace(batch, t=batch.t + 0.25 * dt)  # the fixes keep their own epoch times
+    cut = len(batch) // 2 + 7  # between two epochs
+    a, b = make(name), make(name)
+    a.reset(ctx, start.prior)
+    b.reset(ctx, start.prior)
+
+    def change(est):
+        if name == "gnss-cv":
+            est.set_noise_scale(4.0, 1.0)
+        else:
+            est.accel_psd = 4.0 * est.accel_psd
+
+    first = a.step_batch(_slice(shifted, 0, cut))
+    change(a)
+    second = a.step_batch(_slice(shifted, cut, len(batch)))
+    steps = []
+    for i in range(len(batch)):
+        if i == cut:
+            change(b)
+        steps.append(b.step_row(shifted.measurement(i)))
+    rows, covs, _, _ = _rows(steps)
+    assert len(b._ahead.t) == 1  # not the simulator's times: each step predicted alone
+    assert_same_arithmetic(rows, np.concatenate([first.solution, second.solution]))
+    assert_same_arithmetic(covs, np.concatenate([first.covariance, second.covariance]))
+    unchanged = make(name)
+    unchanged.reset(ctx, start.prior)
+    ref = unchanged.step_batch(shifted)
+    assert_same_arithmetic(covs[:cut], ref.covariance[:cut])
+    assert not np.array_equal(covs[cut + 1], ref.covariance[cut + 1])  # the change took effect
+
+
+@pytest.mark.parametrize("name", ["gnss-ls", "gnss-cv"])
+def test_agent_fast_path_equals_step_path(name):
+    """``EstimatorAgent`` takes ``step_row`` (steps without an epoch as views in a reused
+    object) and gets the actions of the agent that calls ``step`` on decoded measurements."""
+    gym = pytest.importorskip("gymnasium")
+    import navsim.envs  # noqa: F401  (registers the ids)
+    from navsim.envs import EstimatorAgent
+
+    over = {"timing": {"duration_s": 4.0}, "outages": {"windows_s": [[1.5, 2.5]]}}
+    env = gym.make("navsim/PaperRail-v0", score=False, **over)
+    obs, info = env.reset(seed=1)
+    observations = []
+    while True:
+        observations.append({k: np.array(v, copy=True) for k, v in obs.items()})
+        obs, _, terminated, truncated, _ = env.step(np.zeros(9))
+        if terminated or truncated:
+            break
+    env.close()
+
+    class StepOnly:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def reset(self, context, prior):
+            self.inner.reset(context, prior)
+
+        def step(self, measurement):
+            return self.inner.step(measurement)
+
+    est = make(name)
+    fast, plain = EstimatorAgent(est), EstimatorAgent(StepOnly(make(name)))
+    fast.reset(info)
+    plain.reset(info)
+    assert fast._step_row is not None and plain._step_row is None
+    for o in observations:
+        x, y = fast.act(o), plain.act(o)
+        assert_same_arithmetic(np.asarray(x), np.asarray(y), name)
+        assert_same_arithmetic(x.extras[0], y.extras[0], "covariance")
+        assert x.extras[1:3] == y.extras[1:3]  # NIS (None or a float) and its dof
+    assert len(est._ahead.t) == est._ahead.span > 1  # the agent's steps were predicted ahead
