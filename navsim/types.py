@@ -305,6 +305,17 @@ class MeasurementBatch:
     def __len__(self) -> int:
         return len(self.t)
 
+    @classmethod
+    def of(cls, m: Measurement) -> MeasurementBatch:
+        """The one step ``m`` as a batch of one (``of(m).measurement(0)`` is ``m``'s values);
+        ``m`` may be any object with the attributes of :class:`Measurement`."""
+        odometer = getattr(m, "odometer_ds_m", None)
+        baro = getattr(m, "baro_alt_m", None)
+        return cls(np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
+                   np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None],
+                   ((0, m.gnss),) if m.gnss is not None else (), None if odometer is None else np.array([odometer]),
+                   None if baro is None else np.array([baro]))
+
     def measurement(self, i: int) -> Measurement:
         """The i-th step as a :class:`Measurement`."""
         epoch = next((obs for j, obs in self.gnss if j == i), None)

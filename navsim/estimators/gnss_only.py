@@ -80,12 +80,6 @@ def _covariance9(p_pos_n: np.ndarray, p_vel_n: np.ndarray, p_cross_n: np.ndarray
     return cov
 
 
-def _single(m: Measurement) -> MeasurementBatch:
-    gnss = ((0, m.gnss),) if m.gnss is not None else ()
-    return MeasurementBatch(np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
-                            m.dtheta_sub[None], m.dv_sub[None], gnss)
-
-
 def _estimate(t: float, row: np.ndarray, cov: np.ndarray, nis: float, dof: int, extra: dict) -> Estimate:
     has = not math.isnan(nis)
     return Estimate(t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8], covariance=cov,
@@ -183,7 +177,7 @@ class _GnssOnly(NoiseScalable):
         if measurement.gnss is None and self._ahead is not None:
             row, cov = self._ahead.row(measurement, (self._t, *self._options()), self._predict)
             return _estimate(measurement.t, row, cov, math.nan, 0, {"n_valid": self._n_valid})
-        out = self.step_batch(_single(measurement))
+        out = self.step_batch(MeasurementBatch.of(measurement))
         assert out.covariance is not None  # _over_fixes fills it
         return _estimate(measurement.t, out.solution[0], out.covariance[0], out.nis[0], out.nis_dof[0],
                          {"n_valid": self._n_valid})

@@ -68,9 +68,7 @@ class InsOnly(NoiseScalable):
     def step(self, measurement: Measurement) -> Estimate:
         """Integrate one navigation step."""
         m = measurement
-        out = self.step_batch(MeasurementBatch(
-            np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
-            m.dtheta_sub[None], m.dv_sub[None], ()))
+        out = self.step_batch(MeasurementBatch.of(m))
         assert self.engine is not None and out.covariance is not None  # step_batch checked the reset
         row = out.solution[0]
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
