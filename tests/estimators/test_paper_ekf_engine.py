@@ -157,9 +157,9 @@ def test_engine_option_is_validated():
 
 
 @needs_numba
-def test_packed_step_equals_step_one():
-    """kernel.step_packed (the step-wise path's 8-argument entry on kernel.pack's buffers) is
-    step_one on views of the same memory: the same numbers, bit for bit, and the same state after."""
+def test_packed_step_equals_step_core():
+    """kernel.step_packed (the step-wise path's 9-argument entry on kernel.pack's buffers) is
+    step_core on views of the same memory: the same numbers, bit for bit, and the same state after."""
     sim = Simulator(_scenario(2.0))
     start = sim.reset(1)
     ctx = make_context(sim)
@@ -181,9 +181,9 @@ def test_packed_step_equals_step_one():
         if packed:
             status = kernel.step_packed_dispatcher()(m.dtheta_r, m.dv_r, m.t, m.step, False, fbuf, ibuf, sol, cov9)
         else:
-            status = kernel.step_one_compiled(m.dtheta_r, m.dv_r, m.t, m.step, state, cov, c, ic, breaks, lam_c, h_c,
-                                              H, flat, h_sup, bar_idx, bar_col, est._lvec, est._dt_pow, est._kwork,
-                                              sol, cov9)
+            status = kernel.step_core(m.dtheta_r, m.dv_r, m.t, m.step, False, state, cov, c, ic, breaks, lam_c,
+                                      h_c, H, flat, h_sup, bar_idx, bar_col, est._lvec, est._dt_pow, est._kwork,
+                                      sol, cov9)
         assert status == kernel.STATUS_DONE
         out.append((sol, cov9, fbuf.copy(), ibuf.copy()))
     for a, b in zip(*out):

@@ -170,9 +170,9 @@ Numerical choices
   nothing can be batched over steps without changing the filter; what a step costs is its
   arithmetic plus the interpreter's overhead. The reference engine (``"python"``)
   computes the stage values, the Jacobians, Q, S and sigma^2 in one scalar pass
-  (:meth:`PaperEkf._make_fused`; on the sphere the phi-derivatives are written out by the
-  chain rule instead of a second, complex-step pass; :meth:`PaperEkf._coefficients` is
-  kept as the reference the tests compare it with), and integrates the Riccati equation as
+  (:mod:`~navsim.estimators.paper_ekf.mechanization`; on the sphere the phi-derivatives are
+  written out by the chain rule instead of a second, complex-step pass; the tests hold them
+  to the complex step of the stage function), and integrates the Riccati equation as
   ``R' = [R; I]^T H [R; I]`` with ``H = [[-g g^T, Abar^T], [Abar, Qbar]]`` (``g = h /
   sigma``, ``Abar = A - S h^T / sigma^2``, ``Qbar = Q - S S^T / sigma^2``): two small
   matrix products per RK4 stage; same numbers as the direct form to rounding. The
@@ -197,8 +197,20 @@ Modules
 * :mod:`~navsim.estimators.paper_ekf.config`: the options, validated (:class:`PaperEkfConfig`).
 * :mod:`~navsim.estimators.paper_ekf.track_functions`: lambda(phi), h(phi) of the track
   (:class:`TrackFunctions`).
-* :mod:`~navsim.estimators.paper_ekf.filter`: the estimator :class:`PaperEkf` ((9), (13),
-  (14), (16), outputs) and :func:`paper_state` (8).
+* :mod:`~navsim.estimators.paper_ekf.filter`: the estimator :class:`PaperEkf` (options,
+  reset, step, step_row, step_batch), built from one layer per part of the filter:
+* :mod:`~navsim.estimators.paper_ekf.state`: the model's constants, :func:`paper_state` (8),
+  the prior's projection on the state.
+* :mod:`~navsim.estimators.paper_ekf.mechanization`: (7)-(8) and the observer (13), the
+  stage function and the one-pass coefficients of (14).
+* :mod:`~navsim.estimators.paper_ekf.covariance`: (14)'s Riccati equation as a quadratic
+  form, the gain.
+* :mod:`~navsim.estimators.paper_ekf.gnss`: the measurement model (9) with the lever arm,
+  the epoch update (16).
+* :mod:`~navsim.estimators.paper_ekf.outputs`: the navigation solution and its covariance.
+* :mod:`~navsim.estimators.paper_ekf.python_engine`: the reference engine (``engine="python"``).
+* :mod:`~navsim.estimators.paper_ekf.compiled_engine`: the compiled engine's buffers, hand-overs
+  and step-wise paths.
 * :mod:`~navsim.estimators.paper_ekf.numerics`: the polynomial input model and the Riccati RK4.
 * :mod:`~navsim.estimators.paper_ekf.kernel`: the compiled engine (numba, extra ``fast``).
 * :mod:`~navsim.estimators.paper_ekf.printed`: the printed formulas, literally, for the checks.

@@ -1,7 +1,7 @@
-"""Compiled propagation engine of the seed-003 filter (:mod:`navsim.estimators.paper_ekf.filter`).
+"""Compiled propagation engine of the seed-003 filter (:class:`navsim.estimators.paper_ekf.PaperEkf`).
 
 The continuous filter (14) between GNSS epochs, step by step as in the reference engine
-(:meth:`PaperEkf._one_step <navsim.estimators.paper_ekf.filter.PaperEkf>`): at the start of each
+(:mod:`~navsim.estimators.paper_ekf.python_engine`): at the start of each
 covariance interval the coefficients of (14) at the current state (the stage values F and
 Z_ax - H_a, A = dF/dY, dH_a/dY, Q, the correlation F1 D_A H_w^T and H_w D_a H_w^T; the
 fused scalar pass with the analytic phi-derivatives on the sphere and the complex step on
@@ -17,12 +17,11 @@ The functions are plain Python written in the subset that numba compiles (arrays
 scalars, no Python objects); :func:`advance` is the compiled driver (numba, optional extra
 ``fast``; compiled on its first call and cached on disk); :func:`advance_py` runs the same
 source uncompiled, slowly (tests; ``advance_uncompiled`` keeps it after compilation).
-:func:`step_one` is one navigation step without an epoch (the step-wise path: inputs,
-:func:`advance_py`, outputs); :func:`step_packed` is the same call with the constants, the
-work array and the state taken from the two buffers of :func:`pack` (9 arguments instead of
-21: numba's dispatcher checks the type of every argument of every call); with ``epoch`` it
-also propagates a step that ends at a GNSS epoch and stops before the update (16)
-(:func:`step_core`).
+:func:`step_core` is one navigation step of the step-wise path (inputs, :func:`advance_py`,
+outputs; with ``epoch`` a step that ends at a GNSS epoch, stopped before the update (16));
+:func:`step_packed` is the same call with the constants, the work array and the state taken
+from the two buffers of :func:`pack` (9 arguments instead of 22: numba's dispatcher checks
+the type of every argument of every call).
 
 :func:`advance_py` advances over a run of navigation steps and stops, handing control back
 to the caller, at (a) a step whose start-up stiffness needs adaptive sub-steps (the gain
@@ -48,7 +47,7 @@ import numpy as np
 from navsim.jit import available
 
 __all__ = ["STATUS_DONE", "STATUS_SUBSTEPS", "STATUS_FAILED", "STATUS_EPOCH", "advance", "advance_py",
-           "available", "work_size", "outputs", "outputs_compiled", "pack", "prepare_row", "step_one", "step_one_compiled",
+           "available", "work_size", "outputs", "outputs_compiled", "pack", "prepare_row", "step_core",
            "step_packed", "track_scalars", "track_scalars3"]
 
 STATUS_DONE = 0  # all steps advanced
@@ -214,7 +213,7 @@ def _kphi(phi, c, ic, breaks, lam_c, h_c):
 
 
 def fused(Y, wx, wy, wz, fx, fy, fz, t, c, ic, breaks, lam_c, h_c, first, a_dyn, hneg, q_dyn):
-    """PaperEkf._make_fused's function (same expressions): fills ``first`` (6), ``a_dyn``,
+    """The fused function of :mod:`~navsim.estimators.paper_ekf.mechanization` (same expressions): fills ``first`` (6), ``a_dyn``,
     ``hneg`` (n), ``q_dyn`` (7) and returns (s4, sig2)."""
     om = c[C_OM]
     two_om = 2.0 * om
@@ -569,7 +568,7 @@ def state_rk4(Y, K, row, t0, tau, first, have_first, c, ic, breaks, lam_c, h_c):
 
 # ---------------------------------------------------------------------------- driver
 def work_size(n):
-    """Length of the float work array of :func:`advance_py` and :func:`step_one` for n states."""
+    """Length of the float work array of :func:`advance_py` and :func:`step_core` for n states."""
     return 200 + 30 * n + 16 * n * n
 
 
@@ -799,16 +798,6 @@ def outputs(Ys, Ps, t, c, ic, breaks, lam_c, h_c, sol, cov):
         output_row(Ys[i], Ps[i], t[i], c, ic, breaks, lam_c, h_c, sol[i], cov[i], J, JP, D, B, M)
 
 
-def step_one(dtheta_r, dv_r, t, step, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx,
-             bar_col, lvec, dt_pow, work, sol, cov9):
-    """One navigation step without a GNSS epoch (the step-wise path): inputs, advance_py,
-    outputs. ``state`` = [Y, K, P, P_start] flat (2n + 2n^2), ``work`` as in advance_py.
-    Returns the status of advance_py; outputs (sol (9), cov9 (9, 9)) only when it is
-    STATUS_DONE."""
-    return step_core(dtheta_r, dv_r, t, step, False, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup,
-                     bar_idx, bar_col, lvec, dt_pow, work, sol, cov9)
-
-
 def input_offset(n):
     """Start in ``work`` of the stage inputs (21,) of the step :func:`step_core` prepared."""
     return 64 + 3 * n + 12 * n * n
@@ -816,10 +805,15 @@ def input_offset(n):
 
 def step_core(dtheta_r, dv_r, t, step, epoch, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx,
               bar_col, lvec, dt_pow, work, sol, cov9):
-    """:func:`step_one` for a step that ends at a GNSS epoch too (``epoch`` True): then
-    advance_py stops with STATUS_EPOCH after the propagation (the state advanced, no outputs),
-    and the caller does the update (16) and the outputs; the stage inputs of the step stay in
-    ``work`` from :func:`input_offset` (21 floats)."""
+    """One navigation step of the step-wise path: the stage inputs (:func:`prepare_row`),
+    :func:`advance_py` over the step, the outputs (:func:`output_row`).
+
+    ``state`` = [Y, K, P, P_start] flat (2n + 2n^2), ``cov`` the interval counters, ``work``
+    as in advance_py (at least :func:`work_size` floats). Returns the status of advance_py;
+    the outputs (sol (9), cov9 (9, 9)) only when it is STATUS_DONE. With ``epoch`` True the
+    step ends at a GNSS epoch: advance_py stops with STATUS_EPOCH after the propagation (the
+    state advanced, no outputs) and the caller does the update (16) and the outputs; the
+    stage inputs of the step stay in ``work`` from :func:`input_offset` (21 floats)."""
     n = H.shape[0] // 2
     nn = n * n
     Y = state[0:n]
@@ -862,7 +856,7 @@ P_HEADER = P_I0 + 7
 
 def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_pow, n_work, n):
     """One float64 and one int64 buffer holding the constants, the work array and the state
-    of :func:`step_one` (copies of the arguments), and their views in the buffers.
+    of :func:`step_core` (copies of the arguments), and their views in the buffers.
 
     Returns ``(fbuf, ibuf, views)`` with ``views`` = (c, ic, breaks, lam_c, h_c, H, flat, h_sup,
     bar_idx, bar_col, lvec, dt_pow, work, state, cov): C-contiguous views of the buffers with
@@ -924,9 +918,9 @@ def _compile():
     g = globals()
     for name in ("_piece", "track_scalars", "track_scalars3", "_horner2", "_horner3", "stage", "_kphi", "fused",
                  "_stage_cstep", "_fill_h", "_gain", "_quad", "riccati_rk4", "_rows_ok", "state_rk4", "advance_py",
-                 "prepare_row", "_ek", "_clip1", "output_row", "step_core", "step_one"):
+                 "prepare_row", "_ek", "_clip1", "output_row", "step_core"):
         g[name] = jit(g[name])
-    return g["advance_py"], jit(outputs), g["step_one"], jit(step_packed)
+    return g["advance_py"], jit(outputs), jit(step_packed)
 
 
 def _get(i):
@@ -945,17 +939,6 @@ def outputs_compiled(*args):
     return _get(1)(*args)
 
 
-def step_one_compiled(*args):
-    """:func:`step_one` compiled."""
-    return _get(2)(*args)
-
-
-def step_one_dispatcher() -> Callable[..., int]:
-    """The compiled :func:`step_one` itself (numba's dispatcher, compiled on first use), for
-    a caller that calls it every step without the :func:`step_one_compiled` wrapper."""
-    return _get(2)
-
-
 def step_packed_dispatcher() -> Callable[..., int]:
     """The compiled :func:`step_packed` (numba's dispatcher, compiled on first use)."""
-    return _get(3)
+    return _get(2)

@@ -3,7 +3,7 @@
 :func:`printed_state_rhs` is Appendix 2's F(Y, t) with the printed kinematic matrix
 Phi(beta, gamma) and the printed ``+Omega^2 (r+h) cos(phi) sin(phi)`` centrifugal term;
 :func:`printed_observer_13` is (13) with the c_ij of ``C = D B^T`` (spherical Earth). The
-filter (:mod:`navsim.estimators.paper_ekf.filter`) is tested against them; the corrections
+filter (:mod:`navsim.estimators.paper_ekf.mechanization`) is tested against them; the corrections
 and their evidence are listed in :mod:`navsim.estimators.paper_ekf`.
 """
 
