@@ -29,8 +29,10 @@ from __future__ import annotations
 
 import cmath
 import math
+from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...rotations import euler_krylov_matrix
 from .covariance import Covariance
@@ -42,7 +44,8 @@ __all__ = ["GnssUpdate"]
 class GnssUpdate(Covariance):
     """(9) and the epoch update (16) (a layer of :class:`PaperEkf`)."""
 
-    def antenna_offset(self, alpha: float, beta: float, gamma: float, t: float, omega_ib_b):
+    def antenna_offset(self, alpha: float, beta: float, gamma: float, t: float, omega_ib_b: ArrayLike
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The antenna's ECEF offset from the track point, its velocity, and their partials.
 
         Parameters
@@ -90,7 +93,9 @@ class GnssUpdate(Covariance):
         d_bias = -(c_eb @ np.array([cross(e, lever) for e in np.eye(3).tolist()]).T)
         return arm_e, arm_velocity_e, d_arm, d_vel, d_bias
 
-    def gnss_model(self, phi, V, sat_pos_e, sat_vel_e, arm_e=None, arm_velocity_e=None):
+    def gnss_model(self, phi: float | complex, V: float, sat_pos_e: np.ndarray, sat_vel_e: np.ndarray,
+                   arm_e: np.ndarray | None = None, arm_velocity_e: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted pseudoranges H_R(phi) and Dopplers H_V(phi, V_Y) without clock, (m,) each.
 
         Complex-safe in phi (used for the complex-step Jacobian). Returns (h_r, h_v,
@@ -126,7 +131,8 @@ class GnssUpdate(Covariance):
         h_v = np.sum(d * (sat_vel_e - V * t_e), axis=1) / rho  # (3)
         return rho, h_v, t_e
 
-    def gnss_observation(self, Y, t: float, sat_pos_e, sat_vel_e, gyro_rate_b=None):
+    def gnss_observation(self, Y: Sequence[float], t: float, sat_pos_e: np.ndarray, sat_vel_e: np.ndarray,
+                         gyro_rate_b: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted observables of (9) at the state Y and their Jacobian (16).
 
         Parameters

@@ -28,7 +28,7 @@ __all__ = ["Outputs"]
 class Outputs(GnssUpdate):
     """Solutions and covariances from states; the extra states of an Estimate (a layer of :class:`PaperEkf`)."""
 
-    def outputs(self, Y: np.ndarray, P: np.ndarray, t: np.ndarray):
+    def outputs(self, Y: np.ndarray, P: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Navigation solutions (n, 9) and 9 x 9 covariances (n, 9, 9) from states (n, ns)."""
         Y = np.asarray(Y, dtype=float)
         t = np.asarray(t, dtype=float)

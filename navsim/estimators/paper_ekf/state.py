@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...earth import EarthModel
 from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, mat_nb_from_hpr
@@ -42,7 +43,8 @@ from .track_functions import TrackFunctions
 __all__ = ["StateModel", "paper_state"]
 
 
-def paper_state(lat, lon, velocity_n, heading, pitch, roll, t, earth_rate: float) -> np.ndarray:
+def paper_state(lat: ArrayLike, lon: ArrayLike, velocity_n: ArrayLike, heading: ArrayLike, pitch: ArrayLike,
+                roll: ArrayLike, t: ArrayLike, earth_rate: float) -> np.ndarray:
     """The paper's state [alpha, beta, gamma, phi, V_Y] of a navigation solution, (n, 5).
 
     alpha, beta, gamma from ``D = mat_nb^T B(lat, lon + Omega t)`` (body relative to the
