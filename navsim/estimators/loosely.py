@@ -146,7 +146,7 @@ from ..option_checks import (
     check_probability,
     check_time_constant,
 )
-from ..receiver import least_squares_fix, velocity_fix
+from ..receiver import epoch_kernels, least_squares_fix, velocity_fix
 from ..rotations import mat_nb_from_hpr, quat_to_mat
 from ._inserror import (
     N_STATES,
@@ -207,7 +207,11 @@ def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere
     if k == 0:
         z = np.zeros((0, 3))
         return np.zeros(0, bool), z, np.zeros((0, 3, 3)), z, np.zeros((0, 3, 3)), np.zeros(0, int)
-    if k == 1:  # a step-wise estimator's epoch: views, the values np.stack would copy
+    if k == 1 and atmosphere is None:
+        kernels = epoch_kernels()
+        if kernels is not None:  # a step-wise estimator's epoch: the compiled fixes without their wrappers
+            return _one_epoch_fixes(kernels, observations[0], min_satellites, initial_e)
+    if k == 1:  # views, the values np.stack would copy
         (o,) = observations
         sat_pos, sat_vel = np.asarray(o.sat_pos_e)[None], np.asarray(o.sat_vel_e)[None]
         rho, rate = np.asarray(o.pseudorange_m)[None], np.asarray(o.pseudorange_rate_mps)[None]
@@ -230,6 +234,44 @@ def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere
     vfix = velocity_fix(sat_pos, sat_vel, rate, valid, np.where(fix.ok[:, None], fix.position_e, 0.0))
     ok = fix.ok & vfix.ok & (n_valid >= min_satellites)
     return ok, fix.position_e, fix.covariance[:, :3, :3], vfix.velocity_e, vfix.covariance[:, :3, :3], n_valid
+
+
+# the iteration limits gnss_fixes uses: least_squares_fix's defaults (read there, not repeated)
+_LS_MAX_ITER: int = (least_squares_fix.__kwdefaults__ or {})["max_iter"]
+_LS_TOL_M: float = (least_squares_fix.__kwdefaults__ or {})["tol_m"]
+
+
+def _one_epoch_fixes(kernels, o, min_satellites: int, initial_e) -> tuple[np.ndarray, ...]:
+    """:func:`gnss_fixes` of one epoch without the a-priori atmosphere, by the compiled
+    kernels (:func:`navsim.receiver.epoch_kernels`) called directly: the inputs, starting
+    state and kernel calls of :func:`~navsim.receiver.least_squares_fix` and
+    :func:`~navsim.receiver.velocity_fix` (``method="compiled"``) for one epoch, so the
+    same numbers, without their per-call array checks and result objects."""
+    fix_epochs, velocity_epochs = kernels
+    sat = np.ascontiguousarray(np.asarray(o.sat_pos_e, dtype=float)[None])
+    m = sat.shape[1]
+    if sat.shape[2] != 3:
+        raise ConfigError("sat_pos_e", "shape (k, m, 3) or (m, 3)", sat.shape)
+    valid = np.ascontiguousarray(np.asarray(o.valid, dtype=bool).reshape(1, m))
+    state = np.zeros((1, 4))
+    if initial_e is not None:
+        init = np.asarray(initial_e, dtype=float)
+        state[:, :init.shape[-1]] = init
+    out, cov_pos = np.empty((1, 4)), np.empty((1, 4, 4))
+    used, ok = np.empty(1, dtype=np.int64), np.empty(1, dtype=bool)
+    fix_epochs(sat, np.ascontiguousarray(np.asarray(o.pseudorange_m, dtype=float).reshape(1, m)), valid, state,
+               _LS_MAX_ITER, _LS_TOL_M, out, cov_pos, used, ok)
+    position = np.zeros((1, 3))
+    if ok[0]:  # the fix where it is ok, else zero (velocity_fix's np.where)
+        position[0] = out[0, :3]
+    vel_out, cov_vel = np.empty((1, 4)), np.empty((1, 4, 4))
+    v_used, v_ok = np.empty(1, dtype=np.int64), np.empty(1, dtype=bool)
+    velocity_epochs(sat, np.ascontiguousarray(np.asarray(o.sat_vel_e, dtype=float).reshape(sat.shape)),
+                    np.ascontiguousarray(np.asarray(o.pseudorange_rate_mps, dtype=float).reshape(1, m)), valid,
+                    position, vel_out, cov_vel, v_used, v_ok)
+    n_valid = valid.sum(axis=1)
+    return (ok & v_ok & (n_valid >= min_satellites), out[:, :3], cov_pos[:, :3, :3], vel_out[:, :3],
+            cov_vel[:, :3, :3], n_valid)
 
 
 def fix_error_model(gnss, height_m: float = 0.0, tau_s=(1200.0, 7200.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -488,6 +530,8 @@ class LooselyCoupledEkf(NoiseScalable):
             if self._ins_only_step(m):
                 row, cov = self._ins_step(m, eng)
                 return row, cov, None, None
+        elif eng is not None and self._epoch_only(m):
+            return self._epoch_row(m)
         return row_of(self.step(m))
 
     def step(self, measurement: Measurement) -> Estimate:
@@ -505,8 +549,7 @@ class LooselyCoupledEkf(NoiseScalable):
             lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
             return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov,
                             extra=self._ins_extra(eng))
-        if m.gnss is not None and self._odo is None and not self._with_lever and (
-                self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
+        if self._epoch_only(m):
             return self._epoch_step(m)
         gnss = ((0, m.gnss),) if m.gnss is not None else ()
         out = self.step_batch(MeasurementBatch(
@@ -524,10 +567,16 @@ class LooselyCoupledEkf(NoiseScalable):
                         covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
                         extra=extra)
 
-    def _epoch_step(self, m: Measurement) -> Estimate:
-        """:meth:`step` at a GNSS epoch without odometer, barometer or lever arm: the
-        operations of :meth:`step_batch` on a batch of one (the fix of the epoch, the INS
-        step, the update), with the INS step on the engine's one-step path
+    def _epoch_only(self, m: Measurement) -> bool:
+        """True when step ``m`` is a GNSS epoch whose only update is the GNSS one, without a
+        lever arm (the path of :meth:`_epoch_row`)."""
+        return m.gnss is not None and self._odo is None and not self._with_lever and (
+            self._baro is None or getattr(m, "baro_alt_m", None) is None or (m.step + 1) % self._baro_steps != 0)
+
+    def _epoch_row(self, m: Measurement) -> StepRow:
+        """The :data:`StepRow` of a step of :meth:`_epoch_only`: the operations of
+        :meth:`step_batch` on a batch of one (the fix of the epoch, the INS step, the
+        update), with the INS step on the engine's one-step path
         (:meth:`ErrorStateIns.advance_step`, the same numbers) and no batch built."""
         eng = self.engine
         ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes((m.gnss,), self.min_satellites, self._initial_e,
@@ -537,19 +586,24 @@ class LooselyCoupledEkf(NoiseScalable):
         if ok[0]:
             value, dof = self._update(pos_e[0], cov_pos[0], vel_e[0], cov_vel[0])
             self.last_update = {"index": 0, "n_valid": int(n_valid[0]), "nis": value}
-            row = eng.current_row().tolist()
+            row = eng.current_row()
             covariance = eng.covariance[NAV, NAV].copy()
             if not math.isnan(value):
                 nis, nis_dof = float(value), int(dof)
         else:
-            row = rows[0].tolist()
+            row = rows[0]
             covariance = cov[0]
         self.diverged = self.diverged or eng.diverged
-        extra = self._ins_extra(eng)  # no odometer on this path
+        return row, covariance, nis, nis_dof
+
+    def _epoch_step(self, m: Measurement) -> Estimate:
+        """:meth:`step` at a step of :meth:`_epoch_only`: :meth:`_epoch_row` as an :class:`Estimate`."""
+        row, covariance, nis, nis_dof = self._epoch_row(m)
+        extra = self._ins_extra(self.engine)  # no odometer on this path
         if self._baro is not None:
             extra["baro_nis"] = self.baro_nis
         extra["n_valid"] = self.last_update.get("n_valid", 0)
-        lat, lon, h, ve, vn, vu, heading, pitch, roll = row
+        lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
         return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=covariance,
                         nis=nis, nis_dof=nis_dof, extra=extra)
 

@@ -966,11 +966,16 @@ class _TightlyCoupled(NoiseScalable):
         gathered on reading."""
         m = measurement
         eng = self.engine
-        if m.gnss is None and eng is not None and (
+        if eng is not None and (
                 self._baro is None or getattr(m, "baro_alt_m", None) is None or (m.step + 1) % self._baro_steps != 0):
-            row, c = eng.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
-            self._last_extra = None
-            return row, c, None, None
+            if m.gnss is None:
+                row, c = eng.advance_row(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
+                self._last_extra = None
+                return row, c, None, None
+            if not self._with_lever:
+                out = self._epoch_row(m)
+                self._last_extra = None
+                return out
         return row_of(self.step(m))
 
     def step(self, measurement: Measurement) -> Estimate:
@@ -999,25 +1004,31 @@ class _TightlyCoupled(NoiseScalable):
                         covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
                         extra=self.last_extra)
 
-    def _epoch_step(self, m: Measurement) -> Estimate:
-        """:meth:`step` at a GNSS epoch without barometer update or lever arm: the operations
-        of :meth:`step_batch` on a batch of one (the INS step, the update), with the INS step
-        on the engine's one-step path (:meth:`ErrorStateIns.advance_step`, the same numbers)
-        and no batch built."""
+    def _epoch_row(self, m: Measurement) -> StepRow:
+        """The :data:`StepRow` of a GNSS epoch without barometer update or lever arm: the
+        operations of :meth:`step_batch` on a batch of one (the INS step, the update), with
+        the INS step on the engine's one-step path (:meth:`ErrorStateIns.advance_step`, the
+        same numbers) and no batch built."""
         eng = self.engine
         rows, c = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
         value, d = self._update(m.gnss)
         nis = nis_dof = None
         if value is not None:
-            row = eng.current_row().tolist()
+            row = eng.current_row()
             cov = eng.covariance[:9, :9].copy()
             if not math.isnan(value):
                 nis, nis_dof = float(value), int(d)
         else:
-            row = rows[0].tolist()
+            row = rows[0]
             cov = c[0]
+        return row, cov, nis, nis_dof
+
+    def _epoch_step(self, m: Measurement) -> Estimate:
+        """:meth:`step` at a GNSS epoch without barometer update or lever arm: :meth:`_epoch_row`
+        as an :class:`Estimate`."""
+        row, cov, nis, nis_dof = self._epoch_row(m)
         self.last_extra = self._extra()
-        lat, lon, h, ve, vn, vu, heading, pitch, roll = row
+        lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
         return Estimate(m.t, lat, lon, h, np.array((ve, vn, vu)), heading, pitch, roll, covariance=cov, nis=nis,
                         nis_dof=nis_dof, extra=self.last_extra)
 

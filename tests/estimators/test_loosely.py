@@ -15,7 +15,7 @@ from scipy.stats import chi2
 from tolerances import assert_covariance_close, assert_same_arithmetic, assert_same_field, assert_same_solution
 
 from navsim.earth import SPHERICAL, WGS84
-from navsim.episode import make_context, run_episode
+from navsim.episode import make_context, measurement_batch, run_episode
 from navsim.estimators import make
 from navsim.estimators._inserror import ImuNoise, error_dynamics, transition
 from navsim.metrics import error_vector, nees
@@ -620,3 +620,31 @@ def test_white_fixes_are_bit_identical_to_the_reference_tree(tmp_path):
     assert sorted(ref.files) == sorted(new.files)
     for key in ref.files:
         assert np.array_equal(ref[key], new[key], equal_nan=True), key
+
+
+def test_one_epoch_fixes_equal_the_batched_fixes_bit_for_bit():
+    """gnss_fixes of one epoch calls the compiled kernels directly (loosely._one_epoch_fixes):
+    the same kernels on the same inputs as the batched call, so every output is the same
+    bit for bit, including epochs with too few usable channels and no starting point."""
+    from navsim.estimators.loosely import gnss_fixes
+    from navsim.receiver import epoch_kernels
+
+    if epoch_kernels() is None:
+        pytest.skip("numba (extra 'fast') not installed: one path only")
+    sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 3.0}})
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    batch = measurement_batch(sim.advance(300), np.asarray(sim.constellation.prn), sc.timing.nav_period_s)
+    obs = [o for _, o in batch.gnss]
+    few = dataclasses.replace(obs[0], valid=np.asarray(obs[0].valid) & (np.cumsum(obs[0].valid) <= 3))
+    nan = dataclasses.replace(obs[1], pseudorange_m=np.where(np.arange(len(obs[1].valid)) == 2, np.nan,
+                                                             obs[1].pseudorange_m))
+    initial = sim.earth.geodetic_to_ecef(start.prior.lat, start.prior.lon, start.prior.h)
+    for o in (*obs, few, nan):
+        for init in (initial, None):
+            one = gnss_fixes((o,), 4, init)
+            two = gnss_fixes((o, o), 4, init)  # the batched wrappers
+            for a, b in zip(one, two):
+                assert a.dtype == b.dtype and a.shape[1:] == b.shape[1:]
+                np.testing.assert_array_equal(a[0], b[0], strict=True)
+    assert not gnss_fixes((few,), 4, initial)[0][0]

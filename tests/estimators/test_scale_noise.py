@@ -45,8 +45,7 @@ def test_added_process_noise_is_the_closed_form(name):
     eng._j = steps
     accel = np.array([3.0, -1.0, 0.5])
     g = np.asarray(eng.earth.gravity_n(st.lat, st.h), dtype=float)
-    eng._f_n = accel - g
-    eng._f_count = 0  # keep _f_n as set
+    eng._f_sum = (accel - g) * (steps * eng.dt)  # the interval's specific-force sum: mean f_n = accel - g
     eng._start_interval(eng.covariance.copy())
     q = eng._series.q1
     rate = theta / (steps * eng.dt)

@@ -107,7 +107,8 @@ class ErrorStateIns:
         g = self.earth.gravity_n(self.state.lat, self.state.h)
         self._f_n = -np.asarray(g, dtype=float)  # at rest until measured
         self._f_sum = np.zeros(3)
-        self._f_count = 0
+        # a subclass's hook of the one-step path, called only when it has one
+        self._after_hook = type(self)._after_steps is not ErrorStateIns._after_steps
         self._start_interval(P)
 
     # -- the INS state ----------------------------------------------------------------
@@ -179,13 +180,13 @@ class ErrorStateIns:
     # -- covariance intervals ----------------------------------------------------------
     def _start_interval(self, P: np.ndarray) -> None:
         """Begin a covariance interval at the current step with covariance P."""
-        if self._f_count:  # mean specific force of the interval that ends here
-            self._f_n = np.asarray(self._f_sum) / (self._f_count * self.dt)
+        steps = getattr(self, "_j", 0)  # steps of the interval that ends here (the sum's terms)
+        if steps:  # mean specific force of the interval that ends here
+            self._f_n = np.asarray(self._f_sum) / (steps * self.dt)
         self._f_sum = np.zeros(3)
-        self._f_count = 0
         self._P0 = P
         self._pending = None
-        span = getattr(self, "_j", 0) * self.dt  # length of the interval that ends here, s
+        span = steps * self.dt  # length of the interval that ends here, s
         self._j = 0  # steps into the interval
         st = self.state
         C = quat_to_mat(st.quat_nb)
@@ -324,12 +325,12 @@ class ErrorStateIns:
                     self._floats()
                     self._in_w = False
                     self.state  # noqa: B018  (validates: the error of the array path)
-                self._f_count += 1
                 j = self._j = self._j + 1
                 if j == self.interval_steps:
                     self._pending = self._full_covariance(j)
                 self.steps += 1
-                self._after_steps(1)
+                if self._after_hook:
+                    self._after_steps(1)
                 return row, cov
         key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
                dtheta_r.shape, dv_r.shape)
@@ -396,7 +397,6 @@ class ErrorStateIns:
             powers = tau[:, None] ** np.arange(9)  # P9(tau) = sum_p tau^p coef_p
             cov[i:i + take] = (powers @ self._poly).reshape(take, 9, 9)
             self._f_sum = self._f_sum + f_dv[i:i + take].sum(axis=0)
-            self._f_count += take
             self._j += take
             i += take
             if self._j == self.interval_steps:
@@ -448,7 +448,6 @@ class ErrorStateIns:
         fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
         self._f_sum = [fs[0] + (d0 + q0 * u0 + (q2 * u2 - q3 * u1)), fs[1] + (d1 + q0 * u1 + (q3 * u0 - q1 * u2)),
                        fs[2] + (d2 + q0 * u2 + (q1 * u1 - q2 * u0))]
-        self._f_count += 1
         return rows, self._step_covariance()
 
     def _step_covariance(self) -> np.ndarray:
