@@ -169,6 +169,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Generic, TypeVar, overload
 
 import numpy as np
 
@@ -211,6 +212,8 @@ __all__ = [
 ]
 
 CB, CD = 15, 16
+T = TypeVar("T")
+
 TINY_CLOCK_BIAS_M = 1e-3
 TINY_CLOCK_DRIFT_MPS = 1e-4
 SIGMA_FLOOR_PR_M = 1e-3  # floors of the measurement sigmas (the "ideal" receiver has 0)
@@ -553,6 +556,35 @@ def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
     return phi, q
 
 
+class _StepMean(Generic[T]):
+    """An estimate of :class:`_ClockEngine` that follows the INS steps: read after steps, it
+    is first brought to the last one (:meth:`_ClockEngine._propagate_means`); assignment
+    stores it (in the instance attribute of the same name with a leading underscore)."""
+
+    def __init__(self, doc: str) -> None:
+        self.__doc__ = doc
+        self.slot = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    @overload
+    def __get__(self, obj: None, owner: type | None = None) -> _StepMean[T]: ...
+
+    @overload
+    def __get__(self, obj: _ClockEngine, owner: type | None = None) -> T: ...
+
+    def __get__(self, obj: _ClockEngine | None, owner: type | None = None) -> T | _StepMean[T]:
+        if obj is None:
+            return self
+        if obj._means_due:
+            obj._propagate_means()
+        return getattr(obj, self.slot)
+
+    def __set__(self, obj: _ClockEngine, value: T) -> None:
+        setattr(obj, self.slot, value)
+
+
 class _ClockEngine(AuxBlocksIns):
     """The INS error engine plus auxiliary states: receiver clock (2), atmosphere (2) and
     barometric-altimeter bias (1).
@@ -654,38 +686,9 @@ class _ClockEngine(AuxBlocksIns):
         self._since_update += n
         self._means_due = True
 
-    @property
-    def clock(self) -> np.ndarray:
-        """Receiver clock estimate [bias (m), drift (m/s)] at the last processed step."""
-        if self._means_due:
-            self._propagate_means()
-        return self._clock
-
-    @clock.setter
-    def clock(self, value: np.ndarray) -> None:
-        self._clock = value
-
-    @property
-    def atm(self) -> np.ndarray:
-        """Estimated zenith delays [I_z, T_z] (m) at the last processed step."""
-        if self._means_due:
-            self._propagate_means()
-        return self._atm
-
-    @atm.setter
-    def atm(self, value: np.ndarray) -> None:
-        self._atm = value
-
-    @property
-    def baro_bias(self) -> float:
-        """Estimated altimeter bias (m) at the last processed step."""
-        if self._means_due:
-            self._propagate_means()
-        return self._baro_bias
-
-    @baro_bias.setter
-    def baro_bias(self, value: float) -> None:
-        self._baro_bias = value
+    clock = _StepMean[np.ndarray]("Receiver clock estimate [bias (m), drift (m/s)] at the last processed step.")
+    atm = _StepMean[np.ndarray]("Estimated zenith delays [I_z, T_z] (m) at the last processed step.")
+    baro_bias = _StepMean[float]("Estimated altimeter bias (m) at the last processed step.")
 
     def _propagate_means(self) -> None:
         """The clock (TC.1), atmosphere (TC.5) and altimeter-bias (TC.10) means after
@@ -864,17 +867,10 @@ class _TightlyCoupled(NoiseScalable):
         self.n_used = m
         if m == 0:
             return None, 0
-        eng = self.engine
-        P = eng.full_covariance()
-        try:
-            dx, P_new, nis = self._kalman(P, sat_pos, sat_vel, z, R, m)
-        except np.linalg.LinAlgError:
-            self.diverged = True
+        P = self.engine.full_covariance()
+        nis = self._apply(lambda: self._kalman(P, sat_pos, sat_vel, z, R, m))
+        if nis is None:
             return None, 0
-        if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new))):
-            self.diverged = True
-            return None, 0
-        eng.apply(dx, P_new)
         dof = len(z)
         self._bad = self._bad + 1 if nis / dof > self.options.nis_divergence else 0
         if self._bad >= self.options.divergence_epochs:
@@ -948,16 +944,22 @@ class _TightlyCoupled(NoiseScalable):
         H = np.zeros((1, eng.n_states))
         H[0, 2], H[0, eng.baro_index] = 1.0, 1.0
         y = np.array([eng.state.h - altitude_m + eng.baro_bias])
+        nis = self._apply(lambda: joseph_update(P, H, np.array([[self._baro_var]]), y))
+        return (None, 0) if nis is None else (float(nis), 1)
+
+    def _apply(self, update) -> float | None:
+        """Make ``update() -> (dx, P_new, nis)`` and feed it back (:meth:`_ClockEngine.apply`);
+        None, with the divergence flag set, when it fails or is not finite."""
         try:
-            dx, P_new, nis = joseph_update(P, H, np.array([[self._baro_var]]), y)
+            dx, P_new, nis = update()
         except np.linalg.LinAlgError:
             self.diverged = True
-            return None, 0
+            return None
         if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new))):
             self.diverged = True
-            return None, 0
-        eng.apply(dx, P_new)
-        return float(nis), 1
+            return None
+        self.engine.apply(dx, P_new)
+        return nis
 
     def step_row(self, measurement: Measurement) -> StepRow:
         """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the

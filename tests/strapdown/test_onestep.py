@@ -155,7 +155,7 @@ def test_engine_compiled_step_equals_float_step_bit_for_bit():
         if i % 250 == 249:
             for e in (a, b):
                 e.update(H, np.eye(3), np.array([0.3, -0.2, 0.1]))
-    assert a._vec is not None  # the compiled path ran (after the first step resolved the methods)
+    assert a._in_w  # the compiled path ran (after the first step resolved the methods)
     np.testing.assert_array_equal(np.array(ra), np.array(rb))
     np.testing.assert_array_equal(np.array(ca), np.array(cb))
     sa, sb = a.state, b.state

@@ -8,8 +8,10 @@ intervals: :mod:`navsim.estimators._inserror`.
 from __future__ import annotations
 
 import math
+from typing import Callable, Generic, TypeVar, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.stats import chi2
 
 from ...errors import ConfigError
@@ -37,6 +39,35 @@ from .model import (
     state_from_prior,
 )
 from .terms import BodyTerms, StepTerms, body_terms
+
+T = TypeVar("T")
+
+
+class _InWork(Generic[T]):
+    """An attribute of :class:`ErrorStateIns` kept in its work array ``_w[start:stop]``
+    (:func:`navsim.strapdown.compiled.work_array`), where the compiled one-step path reads
+    it and adds to it: assignment copies the value in, reading gives ``read`` of the slice
+    (a view, or the Python floats of the float path). One place for every path, so a deep
+    copy of the engine copies it with the array."""
+
+    def __init__(self, start: int, stop: int, read: Callable[[np.ndarray], T], doc: str) -> None:
+        self.index = slice(start, stop)
+        self.read = read
+        self.__doc__ = doc
+
+    @overload
+    def __get__(self, obj: None, owner: type | None = None) -> _InWork[T]: ...
+
+    @overload
+    def __get__(self, obj: ErrorStateIns, owner: type | None = None) -> T: ...
+
+    def __get__(self, obj: ErrorStateIns | None, owner: type | None = None) -> T | _InWork[T]:
+        if obj is None:
+            return self
+        return self.read(obj._w[self.index])
+
+    def __set__(self, obj: ErrorStateIns, value: ArrayLike) -> None:
+        obj._w[self.index] = value
 
 
 class ErrorStateIns:
@@ -126,45 +157,12 @@ class ErrorStateIns:
         self._flat = None
         self._in_w = False
 
-    @property
-    def _vec(self) -> np.ndarray | None:
-        """The (13,) state of the compiled path, (lat, lon, h, k_lat, k_lon, k_h, vE, vN, vU,
-        q0..q3), a view of its work array, when it holds the state (else None)."""
-        return self._w[_compiled.W_STATE:_compiled.W_FSUM] if self._in_w else None
-
-    @_vec.setter
-    def _vec(self, value: None) -> None:  # only None: the state no longer lives in the work array
-        self._in_w = False
-
-    @property
-    def gyro_bias(self) -> np.ndarray:
-        """Gyro bias estimate (3,), rad/s (set by assignment: the compiled path copies it on the next step)."""
-        return self._gyro_bias
-
-    @gyro_bias.setter
-    def gyro_bias(self, value: np.ndarray) -> None:
-        self._gyro_bias = value
-        self._bias_due = True
-
-    @property
-    def accel_bias(self) -> np.ndarray:
-        """Accelerometer bias estimate (3,), m/s^2 (set by assignment, as :attr:`gyro_bias`)."""
-        return self._accel_bias
-
-    @accel_bias.setter
-    def accel_bias(self, value: np.ndarray) -> None:
-        self._accel_bias = value
-        self._bias_due = True
-
-    @property
-    def _f_sum(self) -> list:
-        """Sum of the specific-force increments (ENU, m/s) of the current interval, as
-        floats; it lives in the work array, where the compiled path adds to it."""
-        return self._w[_compiled.W_FSUM:_compiled.W_LAYOUT].tolist()
-
-    @_f_sum.setter
-    def _f_sum(self, value) -> None:
-        self._w[_compiled.W_FSUM:_compiled.W_LAYOUT] = value
+    gyro_bias = _InWork[np.ndarray](_compiled.W_GYRO, _compiled.W_ACCEL, np.ndarray.view,
+                                    "Gyro bias estimate (3,), rad/s, body axes.")
+    accel_bias = _InWork[np.ndarray](_compiled.W_ACCEL, _compiled.W_STATE, np.ndarray.view,
+                                     "Accelerometer bias estimate (3,), m/s^2, body axes.")
+    _f_sum = _InWork[list](_compiled.W_FSUM, _compiled.W_LAYOUT, np.ndarray.tolist,
+                           "Sum of the specific-force increments (ENU, m/s) of the current interval, as floats.")
 
     def _floats(self) -> tuple:
         """The state as Python floats: (lat, lon, h, velocity (3,), quat (4,), compensation)."""
@@ -298,10 +296,6 @@ class ErrorStateIns:
             if self._pending is not None:
                 self._start_interval(self._pending)
             w = self._w
-            if self._bias_due:
-                w[_compiled.W_GYRO:_compiled.W_ACCEL] = self._gyro_bias
-                w[_compiled.W_ACCEL:_compiled.W_STATE] = self._accel_bias
-                self._bias_due = False
             if not self._in_w:
                 lat, lon, h, velocity, quat, compensation = self._floats()
                 w[_compiled.W_STATE:_compiled.W_FSUM] = (lat, lon, h, *compensation, *velocity, *quat)
@@ -429,7 +423,7 @@ class ErrorStateIns:
         (lat, lon, h), velocity, quat = pos[1], vel[1], quats[1]
         self._flat = (lat, lon, h, velocity, quat, compensation)
         self._state = None
-        self._vec = None
+        self._in_w = False
         ve, vn, vu = velocity
         if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(h) and math.isfinite(ve)
                 and math.isfinite(vn) and math.isfinite(vu)):
@@ -445,7 +439,7 @@ class ErrorStateIns:
         # specific force in ENU, C(k+1) dV_k / dt (see advance_body)
         d0, d1, d2 = dv_first
         u0, u1, u2 = 2.0 * (q2 * d2 - q3 * d1), 2.0 * (q3 * d0 - q1 * d2), 2.0 * (q1 * d1 - q2 * d0)
-        fs = self._f_sum if isinstance(self._f_sum, list) else self._f_sum.tolist()
+        fs = self._f_sum
         self._f_sum = [fs[0] + (d0 + q0 * u0 + (q2 * u2 - q3 * u1)), fs[1] + (d1 + q0 * u1 + (q3 * u0 - q1 * u2)),
                        fs[2] + (d2 + q0 * u2 + (q1 * u1 - q2 * u0))]
         return rows, self._step_covariance()
