@@ -38,7 +38,7 @@ the machine may be shared, so the ratios (same process, same rounds) are the fig
 trust.
 
 Usage: ``python benchmarks/bench_stepwise.py [--quick] [--rounds 3] [--duration 30]
-[--episode 1000] [--fmu-steps 2000] [--no-fmu]``
+[--episode 1000] [--fmu-steps 2000] [--no-fmu] [--no-gym] [--estimators along-track,lc-ekf]``
 """
 
 from __future__ import annotations
@@ -112,13 +112,13 @@ def _episode_inputs(duration: float):
     return scenario, start, context, batches, meas, observations, info
 
 
-def estimator_table(duration: float, rounds: int) -> tuple[list[str], dict[str, float]]:
+def estimator_table(duration: float, rounds: int, only: tuple[str, ...] = ESTIMATORS) -> tuple[list[str], dict[str, float]]:
     from navsim.envs import EstimatorAgent
     from navsim.estimators import available, make
 
     scenario, start, context, batches, meas, observations, info = _episode_inputs(duration)
     n = len(meas)
-    names = [e for e in ESTIMATORS if e in available()]
+    names = [e for e in only if e in available()]
     times: dict[tuple[str, str], list[float]] = {}
     solutions: dict[tuple[str, str], np.ndarray] = {}
     clock = time.process_time
@@ -348,6 +348,9 @@ def main() -> None:
     ap.add_argument("--fmu-steps", type=int, default=2000, help="communication steps per FMU row (>= 1000: "
                     "the simulator buffers 1000 steps ahead)")
     ap.add_argument("--no-fmu", action="store_true", help="leave out the FMU table")
+    ap.add_argument("--estimators", default=",".join(ESTIMATORS), help="comma-separated rows of the estimator "
+                    "tables (default: all five)")
+    ap.add_argument("--no-gym", action="store_true", help="leave out the Gymnasium loop")
     args = ap.parse_args()
     if args.quick:
         args.rounds, args.duration, args.episode, args.fmu_steps = 1, 10.0, 20.0, 1000
@@ -356,17 +359,18 @@ def main() -> None:
     print()
     print("### Estimators: step-wise against batch")
     print()
-    lines, batch_cost = estimator_table(args.duration, args.rounds)
+    lines, batch_cost = estimator_table(args.duration, args.rounds, tuple(args.estimators.split(",")))
     print("\n".join(lines))
     if not args.no_fmu:
         print()
         print("### FMU doStep")
         print()
         print("\n".join(fmu_table(args.fmu_steps, args.rounds, batch_cost.get("lc-ekf"))))
-    print()
-    print("### Gymnasium loop against run_episode")
-    print()
-    print("\n".join(gym_table(args.episode)))
+    if not args.no_gym:
+        print()
+        print("### Gymnasium loop against run_episode")
+        print()
+        print("\n".join(gym_table(args.episode)))
 
 
 if __name__ == "__main__":

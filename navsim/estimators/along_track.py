@@ -299,12 +299,13 @@ class TrackTable:
     R_E, GEO, T_N, HEADING, PITCH, CANT, G_T = slice(0, 3), slice(3, 6), slice(6, 9), 9, 10, 11, 12
     ANT = slice(13, 16)  # antenna offset in ECEF (only with a lever arm)
 
-    def _index(self, s: np.ndarray):
+    def _index(self, s: FloatOrArray) -> tuple[np.ndarray, np.ndarray]:
         x = np.clip(np.asarray(s, dtype=float), 0.0, self.length) * self._inv
         i = np.minimum(x.astype(int), self._n - 2)
         return i, x - i
 
-    def evaluate(self, s: FloatOrArray, columns: slice | Sequence[int] = slice(None), derivative: int = 0) -> np.ndarray:
+    def evaluate(self, s: FloatOrArray, columns: slice | int | Sequence[int] = slice(None),
+                 derivative: int = 0) -> np.ndarray:
         """Hermite interpolant (derivative 0), its first or second s-derivative at s.
 
         Returns shape ``np.shape(s) + (k,)`` for a slice of columns, ``np.shape(s)`` for
@@ -409,7 +410,8 @@ def _process_noise(tau: np.ndarray, q_v: float, q_b: float, s_f: float, s_g: flo
     return q
 
 
-def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
+def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray,
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Kalman update in Joseph form: returns x + K y, (I-KH) P (I-KH)^T + K R K^T, NIS.
 
     ``R`` is the (m,) diagonal of the measurement noise. Non-finite results come back
@@ -567,10 +569,12 @@ class AlongTrackFilter(NoiseScalable):
     NOISE_MEASUREMENT_SIGMA = ('sigma_pr', 'sigma_rate')
     # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
+    table: TrackTable  # the map table of the last reset (cached per track)
+
     def __init__(self, **options: Any) -> None:
         self.options = AlongTrackOptions(**options)
-        self.table: TrackTable | None = None
-        self._table_key = None
+        self._table: TrackTable | None = None
+        self._table_key: tuple | None = None
 
     # ------------------------------------------------------------------ reset
     def reset(self, context: Context, prior: Prior) -> None:
@@ -579,11 +583,11 @@ class AlongTrackFilter(NoiseScalable):
         arm = getattr(context.gnss, "lever_arm_b_m", (0.0, 0.0, 0.0)) if opt.lever_arm == "auto" else (0.0, 0.0, 0.0)
         arm = tuple(float(x) for x in arm)
         key = (id(context.track), opt.table_step_m, arm)
-        if self.table is None or self._table_key != key:
-            self.table = TrackTable(context.track, opt.table_step_m, lever_arm_b=arm)
+        if self._table is None or self._table_key != key:
+            self._table = TrackTable(context.track, opt.table_step_m, lever_arm_b=arm)
             self._table_key = key
         self.context = context
-        table = self.table
+        table = self.table = self._table
         gnss = context.gnss
         if opt.update == "fix" or opt.clock == "none":
             self.clock_states = False
@@ -635,7 +639,7 @@ class AlongTrackFilter(NoiseScalable):
             self.atm_zenith0 = (float(gnss.ionosphere_zenith_m), float(gnss.troposphere_zenith_m))
             self.atm_k = context.earth.a / (context.earth.a + float(gnss.ionosphere_shell_height_m))
             self.atm_scale_height = float(gnss.troposphere_scale_height_m)
-        if self.use_odometer:  # (AT.11) the clone starts as s itself
+        if self.use_odometer and odometer is not None:  # (AT.11) the clone starts as s itself
             ic, ik = self.i_clone, self.i_scale
             x[ic] = s0
             P[ic, ic] = P[0, ic] = P[ic, 0] = P[0, 0]
@@ -643,7 +647,7 @@ class AlongTrackFilter(NoiseScalable):
             tau_k = float(odometer.scale_factor_tau_s)
             self.q_k = 2.0 * odometer.scale_factor_gm_sigma**2 / tau_k if math.isfinite(tau_k) else 0.0
             self.odo_steps = max(1, int(round(opt.odometer_period_s / context.nav_period_s)))
-            self.odo_spec = odometer
+            self.odo_spec: Any = odometer
             self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
             self._odo_v0 = v0
             self.odo_nis = math.nan
@@ -689,7 +693,7 @@ class AlongTrackFilter(NoiseScalable):
             self._v_start = v
         self.P0 = self.P
         self.k_in = 0  # steps since the interval start
-        self._P_block = None  # (first k, P(k) of the rest of the interval) for step()
+        self._P_block: tuple[int, np.ndarray] | None = None  # (first k, P(k) of the rest of the interval) for step()
 
     def _covariance_at(self, k: np.ndarray) -> np.ndarray:
         """P(t_0 + k dt) = Phi P0 Phi^T + Q for integer step counts k (array)."""
@@ -724,7 +728,8 @@ class AlongTrackFilter(NoiseScalable):
         return dv_y, ds2_y
 
     # ------------------------------------------------------------------ GNSS update
-    def _measurement_model(self, s: float, v: float, obs, use):
+    def _measurement_model(self, s: float, v: float, obs: Any,
+                           use: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Predicted pseudoranges/rates and their Jacobian rows over [s, v] (see module)."""
         table = self.table
         r = table.position_e(s)
@@ -753,7 +758,7 @@ class AlongTrackFilter(NoiseScalable):
         obliquity, mapping, height = slant_maps(sin_e, self.atm_k, h, self.atm_scale_height)  # (TC.6)
         return obliquity, height * mapping
 
-    def _update(self, obs) -> tuple[float | None, int]:
+    def _update(self, obs: Any) -> tuple[float | None, int]:
         use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m)
         if not use.any():
             return None, 0
@@ -802,19 +807,19 @@ class AlongTrackFilter(NoiseScalable):
             s_fix = table.project(fix_imu, s0=s)
             t_e = table.evaluate(s_fix, table.R_E, 1)
             t_e = t_e / np.linalg.norm(t_e)
-            H = [np.eye(self.n_x)[0]]
-            y = [s_fix - s]
-            R = [float(t_e @ fix.covariance[:3, :3] @ t_e) * self.sigma_pr**2]
+            h_rows = [np.eye(self.n_x)[0]]
+            y_list = [s_fix - s]
+            r_list = [float(t_e @ fix.covariance[:3, :3] @ t_e) * self.sigma_pr**2]
             if opt.use_doppler:
                 vfix = velocity_fix(obs.sat_pos_e, obs.sat_vel_e, obs.pseudorange_rate_mps, use, fix.position_e)
                 if vfix.ok:
                     gain = 1.0  # d(t_e . v_antenna)/dv
                     if table.has_antenna:
                         gain = 1.0 + float(t_e @ table.evaluate(s, table.ANT, 1))
-                    H.append(np.eye(self.n_x)[1] * gain)
-                    y.append(float(t_e @ vfix.velocity_e) - gain * v)
-                    R.append(float(t_e @ vfix.covariance[:3, :3] @ t_e) * self.sigma_rate**2)
-            H, y, R = np.array(H), np.array(y), np.array(R)
+                    h_rows.append(np.eye(self.n_x)[1] * gain)
+                    y_list.append(float(t_e @ vfix.velocity_e) - gain * v)
+                    r_list.append(float(t_e @ vfix.covariance[:3, :3] @ t_e) * self.sigma_rate**2)
+            H, y, R = np.array(h_rows), np.array(y_list), np.array(r_list)
         result = joseph_update(x, P, y, H, R)
         if result is None:
             self.diverged = True
@@ -828,7 +833,7 @@ class AlongTrackFilter(NoiseScalable):
         return nis, dof
 
     # ------------------------------------------------------------------ odometer
-    def _odometer_due(self, ds, step: int) -> bool:
+    def _odometer_due(self, ds: float | None, step: int) -> bool:
         """Accumulate one step's odometer distance; True when an update falls at its end."""
         if ds is None:
             self._odo_missing = True
@@ -874,7 +879,7 @@ class AlongTrackFilter(NoiseScalable):
         return nis, (1 if nis is not None else 0)
 
     @staticmethod
-    def _sum_nis(nis, dof, nis_o, dof_o):
+    def _sum_nis(nis: float | None, dof: int, nis_o: float | None, dof_o: int) -> tuple[float | None, int]:
         """NIS of sequential updates in one step: the sum (independent innovations)."""
         if nis_o is None:
             return nis, dof
@@ -883,7 +888,7 @@ class AlongTrackFilter(NoiseScalable):
         return nis + nis_o, dof + dof_o
 
     # ------------------------------------------------------------------ output
-    def _outputs(self, s: np.ndarray, v: np.ndarray, P: np.ndarray):
+    def _outputs(self, s: np.ndarray, v: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Solutions (k, 9) and 9 x 9 covariances (k, 9, 9) from states and covariances."""
         table, opt = self.table, self.options
         vals = table.evaluate(s, slice(3, 12))  # geodetic, tangent, heading, pitch, cant
@@ -911,39 +916,42 @@ class AlongTrackFilter(NoiseScalable):
         """P at step k of the interval for :meth:`step`: :meth:`_covariance_at` of the steps
         from k to the next covariance boundary computed in one call on first use (the
         same per-step numbers as one call per step), then read one by one."""
+        block = self._interval_block(k, step)
+        return block[1][k - block[0]]
+
+    def _interval_block(self, k: int, step: int) -> tuple[int, np.ndarray]:
+        """``(first k, P(k) of the steps from it to the next covariance boundary)``, computed
+        when step k is not in the block held."""
         block = self._P_block
         if block is None or not 0 <= k - block[0] < len(block[1]):
             rest = self.cov_steps - step % self.cov_steps  # steps up to the next boundary
             block = self._P_block = (k, self._covariance_at(np.arange(k, k + rest)))
-        return block[1][k - block[0]]
+        return block
 
     def _output_row(self, s: float, v: float, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_output_one` without the leading step axis: row (9,), covariance (9, 9)."""
-        kern, values, derivs, w_n, prm, floor = (self._row_args or self._row_setup())[:6]
+        kern, tab, prm, _ = self._row_args or self._row_setup()
         if kern is None:
             sol, cov = self._output_one(s, v, P)
             return sol[0], cov[0]
         sol = np.empty(9)
         cov = np.empty((9, 9))
-        kern(values, derivs, w_n, prm, s, v, P, floor, sol, cov)
+        kern(tab, prm, s, v, P, sol, cov)
         return sol, cov
 
     def _row_setup(self) -> tuple:
         """The step path's compiled kernels and their fixed arguments (once per reset):
-        (_output_row kernel or None, table values, derivs, w_n, its parameters, the floors
-        with NaN attitude rows and columns when unestimated, _step_row kernel or None, the
-        table's g_t and d g_t/ds step arrays, _step_row's parameters)."""
+        (:func:`_output_row` kernel or None, the map table as one array :func:`_row_table`,
+        the parameters :func:`_row_params`, :func:`_step_row` kernel or None)."""
         table = self.table
+        assert table is not None  # set by reset
         floor = self._output_floor().copy()
         if self.options.attitude_floor_rad is None:  # NaN + x is NaN: _output_one's NaN entries
             floor[6:9, :] = np.nan
             floor[:, 6:9] = np.nan
-        prm = np.array([table.length, table._inv, table._n, table.step])
-        step_prm = np.array([table.length, table._inv, table._n, table.step, self.dt, self.decay,
-                             1.0 if self.clock_states else 0.0])
+        prm = _row_params(table, self.dt, self.decay, self.clock_states, floor)
         fused = None if self.use_odometer else _step_row_kernel()  # the odometer's steps: the general path
-        row = self._row_args = (_output_row_kernel(), table.values, table.derivs, table.w_n, prm, floor, fused,
-                                np.array(table._g), np.array(table._dg), step_prm)
+        row = self._row_args = (_output_row_kernel(), _row_table(table), prm, fused)
         return row
 
     def _output_floor(self) -> np.ndarray:
@@ -953,7 +961,7 @@ class AlongTrackFilter(NoiseScalable):
         self._floor = np.diag(np.repeat([opt.position_floor_m**2, opt.velocity_floor_mps**2, att_floor], 3))
         return self._floor
 
-    def _output_one(self, s: float, v: float, P: np.ndarray):
+    def _output_one(self, s: float, v: float, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_outputs` of one state on Python floats (the same operations); the map
         interpolation and the Jacobian J in one compiled call when numba is installed
         (:func:`_map_row`, the same operations again), the covariance by :func:`_cov_two_columns`."""
@@ -962,7 +970,8 @@ class AlongTrackFilter(NoiseScalable):
         if kern is not None:
             sol = np.empty((1, 9))
             J = np.zeros((9, self.n_x))
-            kern(table.values, table.derivs, table.w_n, table.length, table._inv, table._n, table.step, s, v, sol, J)
+            tab, prm = (self._row_args or self._row_setup())[1:3]
+            kern(tab, int(prm[7]), table.length, table._inv, table._n, table.step, s, v, sol, J)
             floor = self.__dict__.get("_floor")
             if floor is None:  # the floors of _outputs, fixed by the options
                 floor = self._output_floor()
@@ -1008,7 +1017,7 @@ class AlongTrackFilter(NoiseScalable):
         if not (np.all(np.isfinite(self.P)) and np.all(d >= -1e-12)):
             self.diverged = True
 
-    def _extra(self, nis, dof) -> dict:
+    def _extra(self, nis: float | None, dof: int) -> dict:
         x = self.x
         extra = {"s": float(x[0]), "speed": float(x[1]), "accel_bias": float(x[2]),
                  "sigma_s": math.sqrt(max(self.P[0, 0], 0.0)), "sigma_v": math.sqrt(max(self.P[1, 1], 0.0)),
@@ -1021,7 +1030,8 @@ class AlongTrackFilter(NoiseScalable):
         return extra
 
     # ------------------------------------------------------------------ step
-    def _advance(self, dv_y: float, ds2_y: float, obs, step: int, odometer_ds=None):
+    def _advance(self, dv_y: float, ds2_y: float, obs: Any, step: int,
+                 odometer_ds: float | None = None) -> tuple[np.ndarray | None, float | None, int]:
         """One step: mean, covariance at the step end, optional update. Returns (P, nis, dof)."""
         self._propagate_mean(dv_y, ds2_y)
         self.k_in += 1
@@ -1045,21 +1055,9 @@ class AlongTrackFilter(NoiseScalable):
         return self.P, nis, dof
 
     def _step_one(self, measurement: Measurement) -> tuple[np.ndarray, np.ndarray, float | None, int]:
-        """One navigation step: (solution row (9,), covariance (9, 9), nis, dof)."""
-        step = measurement.step
-        if measurement.gnss is None and (step + 1) % self.cov_steps:  # no covariance boundary
-            _, values, derivs, w_n, _, floor, fused, g, dg, prm = self._row_args or self._row_setup()
-            if fused is not None:  # mean (AT.3)-(AT.7) and output row in one compiled call
-                k = self.k_in + 1
-                P = self._interval_covariance(k, step)  # depends on k only, not on the mean
-                sol = np.empty(9)
-                cov = np.empty((9, 9))
-                if fused(values, derivs, w_n, g, dg, prm, self.x, np.asarray(measurement.dv_r, dtype=float), P, floor,
-                         sol, cov) == 0:
-                    self.k_in = k
-                    self.t = measurement.t
-                    self._last_extra = None
-                    return sol, cov, None, 0
+        """One navigation step by the general path (the mean on Python floats, then the
+        boundary's covariance, update and odometer, or the interval's P): (solution row (9,),
+        covariance (9, 9), nis, dof)."""
         dv = np.asarray(measurement.dv_r, dtype=float).tolist()  # body-y increments, floats (_along_increments)
         dv_y = dv[0][1]
         ds2_y = dv[1][1] if len(dv) >= 2 else 0.5 * self.dt * dv_y
@@ -1089,17 +1087,40 @@ class AlongTrackFilter(NoiseScalable):
     def step_row(self, measurement: Measurement) -> StepRow:
         """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
         :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers, no
-        :class:`Estimate` built."""
+        :class:`Estimate` built.
+
+        A step without a GNSS epoch that ends inside a covariance interval (and with no
+        odometer) is one compiled call (:func:`_step_row`: the mean (AT.3)-(AT.7) and the
+        output row at the interval's P(k), which depends on k only and comes from the block
+        of :meth:`_interval_covariance`); every other step takes :meth:`_step_one`."""
+        args = self._row_args or self._row_setup()
+        fused = args[3]
+        if fused is not None and measurement.gnss is None:
+            step = measurement.step
+            if (step + 1) % self.cov_steps:  # no covariance boundary at the step end
+                k = self.k_in + 1
+                block = self._P_block
+                if block is None or not 0 <= k - block[0] < len(block[1]):
+                    block = self._interval_block(k, step)
+                dv_r = measurement.dv_r
+                if type(dv_r) is not np.ndarray:
+                    dv_r = np.asarray(dv_r, dtype=float)
+                sol = np.empty(9)
+                cov = np.empty((9, 9))
+                if fused(args[1], args[2], self.x, dv_r, block[1], k - block[0], sol, cov) == 0:
+                    self.k_in = k
+                    self.t = measurement.t
+                    self._last_extra = None
+                    return sol, cov, None, None
         sol, cov, nis, dof = self._step_one(measurement)
         return sol, cov, nis, dof if nis is not None else None
 
     def step(self, measurement: Measurement) -> Estimate:
         """Process one navigation step (see the module docstring for the equations)."""
-        s, cov, nis, dof = self._step_one(measurement)
+        s, cov, nis, dof = self.step_row(measurement)
         lat, lon, h, _, _, _, heading, pitch, roll = s.tolist()  # floats, not NumPy scalars
         return Estimate(t=measurement.t, lat=lat, lon=lon, h=h, velocity_n=s[3:6], heading=heading, pitch=pitch,
-                        roll=roll, covariance=cov, nis=nis, nis_dof=dof if nis is not None else None,
-                        extra=self.last_extra)
+                        roll=roll, covariance=cov, nis=nis, nis_dof=dof, extra=self.last_extra)
 
     def step_batch(self, batch: MeasurementBatch) -> EstimateBatch:
         """n steps at once; the same numbers as repeated :meth:`step`."""
@@ -1118,9 +1139,10 @@ class AlongTrackFilter(NoiseScalable):
         gravity_along = self.table.gravity_along
         dt, decay, clock = self.dt, self.decay, self.clock_states
         odo = self.use_odometer
+        odo_ds: list = []
         if odo:
-            odo_ds = getattr(batch, "odometer_ds_m", None)
-            odo_ds = [None] * n if odo_ds is None else np.asarray(odo_ds, dtype=float).tolist()
+            raw = getattr(batch, "odometer_ds_m", None)
+            odo_ds = [None] * n if raw is None else np.asarray(raw, dtype=float).tolist()
         half_dt, half_dt2 = 0.5 * dt, 0.5 * dt * dt
         x = self.x
         s, v, b = float(x[0]), float(x[1]), float(x[2])
@@ -1182,11 +1204,32 @@ class AlongTrackFilter(NoiseScalable):
         return EstimateBatch(solution=sol, covariance=cov, nis=nis_out, nis_dof=dof_out)
 
 
-def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
+def _row_table(table: TrackTable) -> np.ndarray:
+    """The map table of the compiled row kernels as one (n, 2 c + 5) array: the c columns of
+    ``table.values``, the c of ``table.derivs``, ``w_n`` (3), ``g_t`` and ``d g_t/ds`` times
+    the node step (the lists of :meth:`TrackTable.gravity_along`): the same floats, one
+    argument instead of five."""
+    return np.ascontiguousarray(np.column_stack([table.values, table.derivs, table.w_n, np.array(table._g),
+                                                 np.array(table._dg)]), dtype=float)
+
+
+def _row_params(table: TrackTable, dt: float, decay: float, clock: bool, floor: np.ndarray) -> np.ndarray:
+    """The fixed parameters of the row kernels, (89,): table length, 1 / node step, nodes,
+    node step, dt, the Gauss-Markov decay, clock states 0/1, the column count c of
+    ``table.values``, then the 9 x 9 output floor row by row."""
+    head = [table.length, table._inv, table._n, table.step, dt, decay, 1.0 if clock else 0.0,
+            table.values.shape[1]]
+    return np.concatenate([np.array(head, dtype=float), np.asarray(floor, dtype=float).ravel()])
+
+
+def _map_row(tab: np.ndarray, nc: int, length: float, inv: float, n: int, step: float, s: float, v: float,
+             sol: np.ndarray, J: np.ndarray) -> None:
     """The map interpolation of :meth:`AlongTrackFilter._output_one` at arc length ``s`` and
     speed ``v`` (cubic Hermite on the table, linear in the rotation rates): fills ``sol``
-    (1, 9) and the nonzero columns 0, 1 of ``J`` (9, n_x). The same operations in the same
-    order as the float form there (compiled by numba: :func:`_map_row_kernel`)."""
+    (1, 9) and the nonzero columns 0, 1 of ``J`` (9, n_x). ``tab`` is :func:`_row_table`
+    (values in columns ``[0, nc)``, derivatives in ``[nc, 2 nc)``, ``w_n`` in ``[2 nc, 2 nc + 3)``).
+    The same operations in the same order as the float form there (compiled by numba:
+    :func:`_map_row_kernel`)."""
     x = min(max(s, 0.0), length) * inv
     i = min(int(x), n - 2) if x == x else 0  # NaN s: node 0 (u is NaN, so is every output), no read off the table
     u = x - i
@@ -1197,8 +1240,8 @@ def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
     vals = np.empty(9)
     dt_n = np.empty(3)
     for j in range(9):
-        y0, y1 = values[i, 3 + j], values[i + 1, 3 + j]
-        d0, d1 = derivs[i, 3 + j] * step, derivs[i + 1, 3 + j] * step
+        y0, y1 = tab[i, 3 + j], tab[i + 1, 3 + j]
+        d0, d1 = tab[i, nc + 3 + j] * step, tab[i + 1, nc + 3 + j] * step
         vals[j] = h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1
         if 3 <= j < 6:
             dt_n[j - 3] = (g00 * y0 + g10 * d0 + g01 * y1 + g11 * d1) * inv
@@ -1206,14 +1249,15 @@ def _map_row(values, derivs, w_n, length, inv, n, step, s, v, sol, J):
     sol[0, 0], sol[0, 1], sol[0, 2] = vals[0], vals[1], vals[2]
     sol[0, 3], sol[0, 4], sol[0, 5] = v * vals[3], v * vals[4], v * vals[5]
     sol[0, 6], sol[0, 7], sol[0, 8] = heading, vals[7], vals[8]
+    w = 2 * nc
     for j in range(3):
         J[j, 0] = vals[3 + j]
         J[3 + j, 0] = v * dt_n[j]
         J[3 + j, 1] = vals[3 + j]
-        J[6 + j, 0] = (1 - u) * w_n[i, j] + u * w_n[i + 1, j]
+        J[6 + j, 0] = (1 - u) * tab[i, w + j] + u * tab[i + 1, w + j]
 
 
-def _cov_two_columns(j0, j1, P):
+def _cov_two_columns(j0: np.ndarray, j1: np.ndarray, P: np.ndarray) -> np.ndarray:
     """``J P J^T`` for a Jacobian J (..., 9, n) whose only nonzero columns are 0 and 1 (s and
     v), given as ``j0``, ``j1`` (..., 9), and P (..., n, n): ``(J P)[:, b] = j0 P[0, b] + j1 P[1, b]``,
     then ``cov[r, q] = (J P)[r, 0] j0[q] + (J P)[r, 1] j1[q]`` (the zero columns left out; the
@@ -1223,12 +1267,14 @@ def _cov_two_columns(j0, j1, P):
     return a0[..., :, None] * j0[..., None, :] + a1[..., :, None] * j1[..., None, :]
 
 
-def _output_row(values, derivs, w_n, prm, s, v, P, floor, sol, cov):
+def _output_row(tab: np.ndarray, prm: np.ndarray, s: float, v: float, P: np.ndarray, sol: np.ndarray,
+                cov: np.ndarray) -> None:
     """One output row of :class:`AlongTrackFilter` (compiled, :func:`_output_row_kernel`): the
     solution (9,) by :func:`_map_row` and the covariance ``J P J^T + floor`` (9, 9) by the
-    operations of :func:`_cov_two_columns`. ``prm`` = (table length, 1 / step, nodes, step)."""
+    operations of :func:`_cov_two_columns`. ``tab``: :func:`_row_table`; ``prm``:
+    :func:`_row_params` (the floor is its entries 8 to 88)."""
     J = np.zeros((9, 2))
-    _map_row(values, derivs, w_n, prm[0], prm[1], int(prm[2]), prm[3], s, v, sol.reshape((1, 9)), J)
+    _map_row(tab, int(prm[7]), prm[0], prm[1], int(prm[2]), prm[3], s, v, sol.reshape((1, 9)), J)
     p00, p01, p10, p11 = P[0, 0], P[0, 1], P[1, 0], P[1, 1]
     a0 = np.empty(9)
     a1 = np.empty(9)
@@ -1237,18 +1283,21 @@ def _output_row(values, derivs, w_n, prm, s, v, P, floor, sol, cov):
         a1[r] = J[r, 0] * p01 + J[r, 1] * p11
     for r in range(9):
         for q in range(9):
-            cov[r, q] = (a0[r] * J[q, 0] + a1[r] * J[q, 1]) + floor[r, q]
+            cov[r, q] = (a0[r] * J[q, 0] + a1[r] * J[q, 1]) + prm[8 + 9 * r + q]
 
 
-def _step_row(values, derivs, w_n, g, dg, prm, x, dv_r, P, floor, sol, cov):
+def _step_row(tab: np.ndarray, prm: np.ndarray, x: np.ndarray, dv_r: np.ndarray, P_block: np.ndarray, j: int,
+              sol: np.ndarray, cov: np.ndarray) -> int:
     """One step of :class:`AlongTrackFilter` between covariance boundaries (compiled,
     :func:`_step_row_kernel`): the mean (AT.3)-(AT.7) of ``_propagate_mean`` with
     ``TrackTable.gravity_along`` (the same float operations in the same order, ``x`` in
-    place), then :func:`_output_row` at the new (s, v) with the interval's P. ``prm`` =
-    (table length, 1 / step, nodes, step, dt, Gauss-Markov decay, clock states 0/1).
-    Returns 1, x unchanged, when the mid-step arc length is not finite (the Python path then
-    runs and raises as before), else 0."""
+    place), then :func:`_output_row` at the new (s, v) with the interval's P, entry ``j``
+    of ``P_block`` (:meth:`AlongTrackFilter._interval_covariance`). ``tab``: :func:`_row_table`
+    (``g_t`` and ``d g_t/ds`` times the node step in its last two columns); ``prm``:
+    :func:`_row_params`. Returns 1, x unchanged, when the mid-step arc length is not finite
+    (the Python path then runs and raises as before), else 0."""
     length, inv, n, dt = prm[0], prm[1], int(prm[2]), prm[4]
+    cg = 2 * int(prm[7]) + 3  # the g_t column; d g_t/ds * step next to it
     dv_y = dv_r[0, 1]
     ds2_y = dv_r[1, 1] if dv_r.shape[0] >= 2 else 0.5 * dt * dv_y
     s, v, b = x[0], x[1], x[2]
@@ -1259,15 +1308,15 @@ def _step_row(values, derivs, w_n, g, dg, prm, x, dv_r, P, floor, sol, cov):
     i = min(int(xs), n - 2)
     u = xs - i
     w = 1.0 - u
-    grav = ((1 + 2 * u) * w * w * g[i] + u * w * w * dg[i]
-            + u * u * (3 - 2 * u) * g[i + 1] + u * u * (u - 1) * dg[i + 1])
+    grav = ((1 + 2 * u) * w * w * tab[i, cg] + u * w * w * tab[i, cg + 1]
+            + u * u * (3 - 2 * u) * tab[i + 1, cg] + u * u * (u - 1) * tab[i + 1, cg + 1])
     a = grav - b  # (AT.5) mid-step grade
     x[1] = v + dv_y + a * dt  # (AT.6)
     x[0] = s + v * dt + ds2_y + 0.5 * dt * dt * a  # (AT.7)
     x[2] = b * prm[5]  # (AT.3) Gauss-Markov mean
     if prm[6] != 0.0:
         x[3] = x[3] + x[4] * dt  # (AT.4)
-    _output_row(values, derivs, w_n, prm, x[0], x[1], P, floor, sol, cov)
+    _output_row(tab, prm, x[0], x[1], P_block[j], sol, cov)
     return 0
 
 

@@ -540,3 +540,34 @@ def test_step_row_equals_step_batch_bit_for_bit(scenario, options):
     np.testing.assert_array_equal([np.nan if r[2] is None else r[2] for r in rows], ref.nis)
     np.testing.assert_array_equal(b.x, a.x)
     assert np.isfinite(ref.nis).sum() >= 5  # the epochs' updates ran
+
+
+def test_step_row_takes_the_compiled_path_between_boundaries():
+    """With numba, only the steps that end at a covariance boundary (a GNSS epoch, every
+    ``cov_steps``-th step) take the general path ``_step_one``; the others are the one
+    compiled call of ``_step_row`` on the packed table (``_row_table``: values, derivatives,
+    w_n, g_t and its derivative times the node step, the same floats as the table's)."""
+    from navsim.estimators import along_track
+    from navsim.strapdown import compiled
+
+    if not compiled.available():
+        pytest.skip("numba not installed: every step takes the general path")
+    sc = load_scenario("paper-2012").with_overrides({"timing": {"duration_s": 3.0}})
+    sim = Simulator(sc)
+    start = sim.reset(0)
+    ctx = make_context(sim)
+    batch = measurement_batch(sim.advance(300), np.asarray(sim.constellation.prn), ctx.nav_period_s)
+    est = make("along-track")
+    est.reset(ctx, start.prior)
+    general = []
+    step_one = est._step_one
+    est._step_one = lambda m: general.append(m.step) or step_one(m)
+    for i in range(len(batch)):
+        est.step_row(batch.measurement(i))
+    assert general == [k for k in range(300) if (k + 1) % est.cov_steps == 0]  # epochs at 1, 2, 3 s
+    tab = along_track._row_table(est.table)
+    nc = est.table.values.shape[1]
+    np.testing.assert_array_equal(tab[:, :nc], est.table.values)
+    np.testing.assert_array_equal(tab[:, nc:2 * nc], est.table.derivs)
+    np.testing.assert_array_equal(tab[:, 2 * nc:2 * nc + 3], est.table.w_n)
+    assert tab[:, -2].tolist() == est.table._g and tab[:, -1].tolist() == est.table._dg
