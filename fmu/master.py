@@ -27,7 +27,7 @@ import shutil
 import time
 from pathlib import Path
 from types import ModuleType, TracebackType
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable, NoReturn
 
 import numpy as np
 
@@ -201,13 +201,17 @@ class FmuInstance:
         try:
             return fn(*args)
         except Exception as exc:
-            status = getattr(exc, "status", None)
-            labels: dict[Any, str] = {2: "discard", 3: "error", 4: "fatal"}
-            label = labels.get(status, type(exc).__name__)
-            if status == 4:
-                self._fatal = True
-            messages = "; ".join(m for _, m in self.log[seen:]) or str(exc)
-            raise FmuCallError(f"{self.name}: {what} failed ({label}): {messages}") from exc
+            self._failed_call(what, seen, exc)
+
+    def _failed_call(self, what: str, seen: int, exc: Exception) -> NoReturn:
+        """Raise FmuCallError for a call that raised ``exc`` (its status and the log lines after ``seen``)."""
+        status = getattr(exc, "status", None)
+        labels: dict[Any, str] = {2: "discard", 3: "error", 4: "fatal"}
+        label = labels.get(status, type(exc).__name__)
+        if status == 4:
+            self._fatal = True
+        messages = "; ".join(m for _, m in self.log[seen:]) or str(exc)
+        raise FmuCallError(f"{self.name}: {what} failed ({label}): {messages}") from exc
 
     def initialize(self, parameters: dict[str, Any] | None = None, start_time: float = 0.0,
                    stop_time: float | None = None) -> None:
@@ -222,7 +226,15 @@ class FmuInstance:
         self._call("exitInitializationMode", self.fmu.exitInitializationMode)
 
     def do_step(self, t: float, h: float) -> None:
-        self._call(f"doStep(t={t!r}, h={h!r})", self.fmu.doStep, t, h)
+        """``doStep(t, h)`` (FmuCallError on a non-OK status); :meth:`_call` with the call's
+        description formatted only when it fails (a master calls this every step)."""
+        seen = len(self.log)
+        if self.fmi == 2:
+            _FMI2_LOGS.claim_proxy()
+        try:
+            self.fmu.doStep(t, h)
+        except Exception as exc:
+            self._failed_call(f"doStep(t={t!r}, h={h!r})", seen, exc)
 
     def terminate(self) -> None:
         self._call("terminate", self.fmu.terminate)
