@@ -146,6 +146,27 @@ def test_compiled_engine_flags_divergence():
     assert np.isfinite(out.solution[:40]).all() and np.isnan(out.solution[40:]).all()
 
 
+@needs_numba
+def test_noise_scale_reaches_the_compiled_engine():
+    """set_noise_scale after reset scales D_d, D_a of the compiled engine as of the reference
+    (the constants it copied at reset follow), and the scaled filter is another filter."""
+    sim = Simulator(_scenario(4.0, (1.5, 2.5)))
+    start = sim.reset(3)
+    ctx = make_context(sim)
+    prn = np.asarray(sim.constellation.prn)
+    batch = measurement_batch(sim.advance(400), prn, ctx.nav_period_s)
+    out = {}
+    for name, engine, scale in (("python", "python", 4.0), ("compiled", "compiled", 4.0), ("plain", "compiled", 1.0)):
+        est = PaperEkf(engine=engine)
+        est.reset(ctx, start.prior)
+        est.set_noise_scale(scale, 1.0)
+        b = est.step_batch(batch)
+        out[name] = dict(sol=b.solution, cov=b.covariance, nis=b.nis, dof=b.nis_dof, engine=est.engine,
+                         substeps=est.substeps, diverged=est.diverged)
+    _assert_same(out["python"], out["compiled"])
+    assert not np.allclose(out["compiled"]["cov"], out["plain"]["cov"], rtol=1e-3, atol=0)
+
+
 def test_engine_option_is_validated():
     from navsim.errors import ConfigError
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..base import Estimate, Measurement, StepRow
 from . import kernel as _kernel
+from .kernel import STATUS_DONE
 from .python_engine import PythonEngine
 
 __all__ = ["CompiledEngine"]
@@ -38,9 +39,12 @@ class CompiledEngine(PythonEngine):
     """The compiled engine's buffers, hand-overs and step-wise paths (a layer of :class:`PaperEkf`)."""
 
     _kpack: tuple | None
+    _noise_qd: float
+    _noise_qa: float
     _kargs: tuple | None
     _kstate: tuple | None
     _kstep_one: Callable[..., int] | None
+    _krow: tuple | None  # (compiled step_packed, fbuf, ibuf) while the state is in the buffers
     _kwork: np.ndarray
     last_states: np.ndarray
     last_state_cov: np.ndarray
@@ -88,6 +92,30 @@ class CompiledEngine(PythonEngine):
         self._kpack = (fbuf, ibuf, views[13], views[14])
         return views[:10]
 
+    # D_d and D_a may change after reset (set_noise_scale, navsim.estimators.base.NoiseScalable):
+    # the compiled engine's copies in its constants follow every assignment
+    @property
+    def _qd(self) -> float:
+        return self._noise_qd
+
+    @_qd.setter
+    def _qd(self, value: float) -> None:
+        self._noise_qd = value
+        kargs = getattr(self, "_kargs", None)
+        if kargs is not None:
+            kargs[0][_kernel.C_QD] = value
+
+    @property
+    def _qa(self) -> float:
+        return self._noise_qa
+
+    @_qa.setter
+    def _qa(self, value: float) -> None:
+        self._noise_qa = value
+        kargs = getattr(self, "_kargs", None)
+        if kargs is not None:
+            kargs[0][_kernel.C_QA] = value
+
     def _k_arrays(self):
         """The compiled engine's state: (flat [Y, K, P, P_start], cov counters, Y, K, P, P_start
         views), loaded from the reference engine's attributes when those hold the state."""
@@ -106,6 +134,11 @@ class CompiledEngine(PythonEngine):
             cov = np.empty(3, dtype=np.int64) if pk is None else pk[3]
             cov[:] = (self._cov_left, self._cov_len, self._cov_pos)
             st = self._kstate = (flat, cov, Y, K, P, P_start)
+            if pk is not None:  # what the step-wise paths call: fetched once per hand-over, not per step
+                step = self._kstep_one
+                if step is None:  # the compiled dispatcher itself (no wrapper call per step)
+                    step = self._kstep_one = _kernel.step_packed_dispatcher()
+                self._krow = (step, pk[0], pk[1])
         return st
 
     def _k_release(self) -> None:
@@ -120,6 +153,7 @@ class CompiledEngine(PythonEngine):
             self._P_start = P_start.copy()
             self._cov_left, self._cov_len, self._cov_pos = (int(x) for x in cov)
             self._kstate = None
+            self._krow = None
 
     def _run_compiled(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
         """:meth:`_run` with the runs of steps between epochs advanced by the compiled engine.
@@ -167,18 +201,17 @@ class CompiledEngine(PythonEngine):
         """The step-wise path of the compiled engine for a step without an epoch: (solution
         row (9,), covariance (9, 9)); None when the step needs the general path (sub-steps,
         a failure), the state then unchanged."""
-        if self._kstate is None:  # the state into the packed buffers (views of kernel.pack)
+        krow = self._krow
+        if krow is None:  # the state into the packed buffers (views of kernel.pack)
             self._k_arrays()
+            krow = self._krow
+        step, fbuf, ibuf = krow
         sol = np.empty(9)
         cov9 = np.empty((9, 9))
-        step_one = self._kstep_one
-        if step_one is None:  # the compiled dispatcher itself (no wrapper call per step)
-            step_one = self._kstep_one = _kernel.step_packed_dispatcher()
-        fbuf, ibuf = self._kpack[:2]
-        status = step_one(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
-                          np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
-                          int(measurement.step), False, fbuf, ibuf, sol, cov9)
-        if status != _kernel.STATUS_DONE:
+        status = step(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
+                      np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t),
+                      int(measurement.step), False, fbuf, ibuf, sol, cov9)
+        if status != STATUS_DONE:
             return None
         return sol, cov9
 
@@ -189,16 +222,15 @@ class CompiledEngine(PythonEngine):
         batch (:meth:`_reference_step`, :meth:`_outputs`), so the numbers of
         :meth:`_step_general`, without its array preparation and :class:`Estimate`. None when
         the step needs the general path (sub-steps, a failure), the state then unchanged."""
-        if self._kstate is None:
+        krow = self._krow
+        if krow is None:
             self._k_arrays()
-        step_one = self._kstep_one
-        if step_one is None:
-            step_one = self._kstep_one = _kernel.step_packed_dispatcher()
-        fbuf, ibuf = self._kpack[:2]
+            krow = self._krow
+        step, fbuf, ibuf = krow
         dtheta_r = np.ascontiguousarray(measurement.dtheta_r, dtype=float)
         t = float(measurement.t)
-        status = step_one(dtheta_r, np.ascontiguousarray(measurement.dv_r, dtype=float), t, int(measurement.step),
-                          True, fbuf, ibuf, np.empty(9), np.empty((9, 9)))
+        status = step(dtheta_r, np.ascontiguousarray(measurement.dv_r, dtype=float), t, int(measurement.step),
+                      True, fbuf, ibuf, np.empty(9), np.empty((9, 9)))
         if status != _kernel.STATUS_EPOCH:
             return None
         ns = self.n_states

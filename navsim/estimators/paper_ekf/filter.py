@@ -38,6 +38,7 @@ from ..base import Context, Estimate, EstimateBatch, Measurement, MeasurementBat
 from . import kernel as _kernel
 from .compiled_engine import CompiledEngine
 from .config import PaperEkfConfig
+from .kernel import STATUS_DONE
 from .numerics import input_polynomial_matrix
 from .state import paper_state
 from .track_functions import TrackFunctions
@@ -94,6 +95,7 @@ class PaperEkf(CompiledEngine, NoiseScalable):
 
     NOISE_PROCESS = ("_qd", "_qa")
     NOISE_MEASUREMENT_VARIANCE = ("_r_code", "_r_dopp")
+    step_row_fields = ("dtheta_r", "dv_r")  # the IMU fields step_row reads between epochs (navsim.envs.EstimatorAgent)
     # where set_noise_scale finds Q and R after reset (navsim.estimators.base.NoiseScalable)
 
     def __init__(self, mode: str = "faithful", as_printed: bool | Iterable[str] = False,
@@ -104,6 +106,7 @@ class PaperEkf(CompiledEngine, NoiseScalable):
         self.config = PaperEkfConfig(mode, as_printed, cov_step_s, input_model, accel_in_update,
                                      bias_states, node_step_m, stiffness_limit, lever_arm, observer, engine)
         self._ready = False
+        self._krow = None  # set while the compiled engine holds the state (CompiledEngine._k_arrays)
 
     def reset(self, context: Context, prior: Prior) -> None:
         """Start an episode: model constants from the context, state from the prior."""
@@ -190,6 +193,7 @@ class PaperEkf(CompiledEngine, NoiseScalable):
         self._kargs = self._kernel_args() if cfg.engine != "python" and _kernel.available() else None
         self._kstate = None  # the compiled engine's state arrays while they hold the state
         self._kstep_one = None  # kernel.step_packed's compiled dispatcher, fetched on first use
+        self._krow = None
         # --- initial state
         y0, p0 = self._state_from_prior(prior)
         self._Y = y0
@@ -221,7 +225,22 @@ class PaperEkf(CompiledEngine, NoiseScalable):
     def step_row(self, measurement: Measurement) -> StepRow:
         """:meth:`step` as ``(row (9,), covariance (9, 9), nis, nis_dof)`` (the
         :class:`~navsim.estimators.base.RowStepping` protocol): the same numbers; a step of
-        the compiled path builds no :class:`Estimate` and no ``extra``."""
+        the compiled path builds no :class:`Estimate` and no ``extra``.
+
+        A step without an epoch while the compiled engine holds the state is one call of the
+        compiled :func:`~navsim.estimators.paper_ekf.kernel.step_packed` on the buffers made
+        at the hand-over (``_krow``); a step it hands back (sub-steps, a failure; the state
+        then unchanged) and every other step take the general paths."""
+        krow = self._krow
+        if krow is not None and measurement.gnss is None:
+            step, fbuf, ibuf = krow
+            sol = np.empty(9)
+            cov9 = np.empty((9, 9))
+            if step(np.ascontiguousarray(measurement.dtheta_r, dtype=float),
+                    np.ascontiguousarray(measurement.dv_r, dtype=float), float(measurement.t), int(measurement.step),
+                    False, fbuf, ibuf, sol, cov9) == STATUS_DONE:
+                return sol, cov9, None, None
+            return row_of(self._step_general(measurement))
         self._require()
         if self._kargs is not None and not self._diverged:
             if measurement.gnss is None:
