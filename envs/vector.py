@@ -13,7 +13,10 @@ How it is fast
       computed once per chunk of ``chunk_steps`` steps; the sensor errors of the N
       members in one vectorised pass, each from its own random streams.
     * Each step serves views of the chunk's (N, steps, ...) arrays and computes the N
-      rewards in one vectorised expression against the shared truth row.
+      rewards against the shared truth row: in one compiled loop when numba is installed
+      (:func:`rewards_into`, the single env's operations member by member; it runs
+      without the GIL, so a thread generating the next chunk is not held up by it), else
+      in one vectorised NumPy expression.
 
 Limits
     Autoreset mode NEXT_STEP (Gymnasium's default); resets are of all sub-environments
@@ -68,6 +71,7 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import ArrayLike
 
 from navsim.errors import ConfigError
+from navsim.jit import available
 from navsim.naverror import wrap_angle
 from navsim.scenario import Scenario
 from navsim.signals import Layout, ObservationCodec
@@ -79,7 +83,83 @@ from .spaces import ACTION_SCALE, action_space, check_action, layout_space
 if TYPE_CHECKING:  # type hints only
     from navsim.metrics import EpisodeScore
 
-__all__ = ["NavigationVectorEnv"]
+__all__ = ["NavigationVectorEnv", "rewards_into", "USE_KERNEL"]
+
+USE_KERNEL = True
+"""Rewards by the compiled loop (:func:`rewards_into`) when numba is installed; False: the
+NumPy expression (the same numbers up to the arctangent's last bit, see :func:`rewards_into`)."""
+
+
+def _wrap(x: float) -> float:
+    """:func:`navsim.naverror.wrap_angle_scalar` in numba's subset: ``phase(exp(i x))``.
+
+    ``1j * x`` is the complex ``(0 x - 0) + (0 + x) i``: its real part is +-0, whose
+    exponential is exactly 1, and its imaginary part ``0 + x`` (-0 becomes +0); so
+    ``exp(1j x) = (cos y, sin y)`` with y = 0 + x, and the phase is ``atan2(sin y, cos y)``
+    with the C library's functions, as CPython's ``cmath`` computes them (nan for
+    non-finite x, as ``wrap_angle_scalar``)."""
+    if x - x != 0.0:
+        return math.nan
+    y = 0.0 + x
+    return math.atan2(math.sin(y), math.cos(y))
+
+
+def rewards_into(a: np.ndarray, sc: np.ndarray, row: np.ndarray, w_pos: float, w_vel: float, w_att: float,
+                 cap: float, out: np.ndarray) -> None:
+    """The N rewards of a step into ``out`` (N,): for member j, with ``a`` (N, 9) the
+    solutions, ``sc`` (9,) the action scale and ``row`` the truth row
+    (:data:`~navsim.envs.chunks.TRUTH_COLUMNS`), the operations of the single env's step
+    (:meth:`~navsim.envs.navigation.NavigationEnv.step`, in its order, Python floats)::
+
+        dE = wrap(a1 s1 - lon) (R_E + h) cos(lat),  dN = (a0 s0 - lat) (R_N + h),  dU = a2 s2 - h
+        e  = w_pos sqrt(dE^2 + dN^2 + dU^2) [+ w_vel sqrt(|a_v s_v - v|^2)] [+ w_att sqrt(|wrap(a_att s_att - att)|^2)]
+        r  = -e if e < cap else -cap                      (nan -> -cap)
+
+    with ``wrap`` the principal angle of :func:`navsim.naverror.wrap_angle_scalar` (the C
+    library's sin, cos and atan2, as ``cmath``). Compiled by numba (no fused
+    multiply-adds: the same roundings as the Python floats), so member j's reward is its
+    single env's bit for bit; the NumPy path (:func:`navsim.naverror.wrap_angle`) takes
+    NumPy's arctangent, which may differ in the last bit."""
+    for j in range(a.shape[0]):
+        de = _wrap(a[j, 1] * sc[1] - row[1]) * row[10] * row[11]
+        dn = (a[j, 0] * sc[0] - row[0]) * row[9]
+        du = a[j, 2] * sc[2] - row[2]
+        e = w_pos * math.sqrt(de * de + dn * dn + du * du)
+        if w_vel:
+            d0 = a[j, 3] * sc[3] - row[3]
+            d1 = a[j, 4] * sc[4] - row[4]
+            d2 = a[j, 5] * sc[5] - row[5]
+            e = e + w_vel * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if w_att:
+            d0 = _wrap(a[j, 6] * sc[6] - row[6])
+            d1 = _wrap(a[j, 7] * sc[7] - row[7])
+            d2 = _wrap(a[j, 8] * sc[8] - row[8])
+            e = e + w_att * math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        out[j] = -e if e < cap else -cap
+
+
+_compiled: dict[str, Any] = {}
+_compile_lock = threading.Lock()
+
+
+def _rewards_kernel() -> Any:
+    """:func:`rewards_into` compiled (numba, ``nogil``, cached on disk), or None without
+    numba or with :data:`USE_KERNEL` off."""
+    if not USE_KERNEL or not available():
+        return None
+    kernel = _compiled.get("rewards_into")
+    if kernel is None:
+        with _compile_lock:  # the calling thread and a chunk thread may get here at once
+            kernel = _compiled.get("rewards_into")
+            if kernel is None:
+                import numba
+
+                global _wrap
+                if not isinstance(_wrap, numba.core.registry.CPUDispatcher):
+                    _wrap = numba.njit(cache=True, nogil=True)(_wrap)
+                kernel = numba.njit(cache=True, nogil=True)(rewards_into)
+                _compiled["rewards_into"] = kernel
+    return kernel
 
 
 def _default_chunk(num_envs: int) -> int:
@@ -374,19 +454,13 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             self._next = self._loader.submit(self._make_chunk)
         row = self._truth[i]  # the truth is the same for every member
         sc = self.action_scale
-        # the navigation error of navsim.naverror, the same operations as the single env
-        de = wrap_angle(a[:, 1] * sc[1] - row[1]) * row[10] * row[11]
-        dn = (a[:, 0] * sc[0] - row[0]) * row[9]
-        du = a[:, 2] * sc[2] - row[2]
         w_pos, w_vel, w_att = self.reward_weights
-        e = w_pos * np.sqrt(de * de + dn * dn + du * du)
-        if w_vel:
-            d = a[:, 3:6] * sc[3:6] - row[3:6]
-            e = e + w_vel * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
-        if w_att:
-            d = wrap_angle(a[:, 6:9] * sc[6:9] - row[6:9])
-            e = e + w_att * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
-        reward = -np.where(e < self.reward_cap, e, self.reward_cap)
+        kernel = _rewards_kernel()
+        if kernel is not None:  # compiled, without the GIL: the single env's operations
+            reward = np.empty(n)
+            kernel(a, sc, row, w_pos, w_vel, w_att, self.reward_cap, reward)
+        else:
+            reward = self._rewards_numpy(a, row)
         if self.tapes is not None:
             self._actions[i] = a
         info = self._step_info(i)
@@ -411,6 +485,23 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             i = 0
         self._i = i
         return self._obs(i), reward, np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), info
+
+    def _rewards_numpy(self, a: np.ndarray, row: np.ndarray) -> np.ndarray:
+        """The N rewards as one NumPy expression (without numba; :func:`rewards_into`)."""
+        sc = self.action_scale
+        w_pos, w_vel, w_att = self.reward_weights
+        # the navigation error of navsim.naverror, the same operations as the single env
+        de = wrap_angle(a[:, 1] * sc[1] - row[1]) * row[10] * row[11]
+        dn = (a[:, 0] * sc[0] - row[0]) * row[9]
+        du = a[:, 2] * sc[2] - row[2]
+        e = w_pos * np.sqrt(de * de + dn * dn + du * du)
+        if w_vel:
+            d = a[:, 3:6] * sc[3:6] - row[3:6]
+            e = e + w_vel * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+        if w_att:
+            d = wrap_angle(a[:, 6:9] * sc[6:9] - row[6:9])
+            e = e + w_att * np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+        return -np.where(e < self.reward_cap, e, self.reward_cap)
 
     def _flush_actions(self, used: int) -> None:
         if self.tapes is None:
