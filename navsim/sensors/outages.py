@@ -58,6 +58,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_nonnegative
 from ..types import FloatOrArray
+from ._common import RecentBatches, frozen_array
 from .imu import apply as _imu_apply
 from .imu import kernel as _imu_kernel
 
@@ -228,6 +229,12 @@ class OutageState:
         return cls(float("nan"), bool(u[0] < p_rx), u[1:] < p_sv)
 
 
+# the slots' own setters (a frozen dataclass refuses setattr): for visibility_batch's states
+_SET_T, _SET_RX, _SET_SV = (getattr(OutageState, name).__set__ for name in ("t_s", "receiver_out", "satellite_out"))
+_RECENT = RecentBatches()
+"""The outage states made by the last batched calls and their arrays (:func:`visibility_batch`)."""
+
+
 def _stationary_out(mean_out: float, mean_avail: float) -> float:
     return mean_out / (mean_out + mean_avail) if mean_out > 0.0 else 0.0
 
@@ -370,12 +377,17 @@ def visibility_batch(
     azimuth = np.asarray(azimuth, dtype=float).reshape(k, m)
     s = np.broadcast_to(np.asarray(s, dtype=float), (k,))
     heading = np.broadcast_to(np.asarray(heading, dtype=float), (k,))
-    for state in states:
-        if state.satellite_out.shape != (m,):
-            raise ConfigError("state.satellite_out", f"shape ({m},)", state.satellite_out.shape)
-    t_s = states[0].t_s
-    if any(not (st.t_s == t_s or (math.isnan(st.t_s) and math.isnan(t_s))) for st in states):
-        raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({st.t_s for st in states}))
+    made = _RECENT.recall(states)  # (t_s, receiver_out, satellite_out) of states this function made
+    if made is not None and made[2].shape == (members, m):
+        t_s = made[0]  # made together: one epoch time, rows of shape (m,)
+    else:
+        made = None
+        for state in states:
+            if state.satellite_out.shape != (m,):
+                raise ConfigError("state.satellite_out", f"shape ({m},)", state.satellite_out.shape)
+        t_s = states[0].t_s
+        if any(not (st.t_s == t_s or (math.isnan(st.t_s) and math.isnan(t_s))) for st in states):
+            raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({st.t_s for st in states}))
     if not np.all(np.isfinite(t)):
         raise ConfigError("t", "finite times", t)
     dt = np.diff(np.concatenate([[t_s], t]))
@@ -428,13 +440,16 @@ def visibility_batch(
 
     # the chains of all receivers side by side as columns (they are independent)
     first = not np.isfinite(t_s)
+    if made is not None:  # the same values as read from the states (read-only arrays)
+        rx_start, sv_start = made[1], made[2].reshape(members * m)
+    else:
+        rx_start = np.array([st.receiver_out for st in states])
+        sv_start = np.concatenate([st.satellite_out for st in states])
     rx_states, rx_last = _markov(
-        u[:, :, 0].T, dt, np.array([st.receiver_out for st in states]),
-        model.receiver_mean_outage_s, model.receiver_mean_available_s, first,
+        u[:, :, 0].T, dt, rx_start, model.receiver_mean_outage_s, model.receiver_mean_available_s, first,
     )
     sv_states, sv_last = _markov(
-        u[:, :, 1:].transpose(1, 0, 2).reshape(k, members * m), dt,
-        np.concatenate([st.satellite_out for st in states]),
+        u[:, :, 1:].transpose(1, 0, 2).reshape(k, members * m), dt, sv_start,
         model.satellite_mean_outage_s, model.satellite_mean_available_s, first,
     )
     receiver_outage = receiver_outage[None, :] | rx_states.T  # (B, k)
@@ -442,15 +457,16 @@ def visibility_batch(
     visible &= ~receiver_outage[:, :, None]
     if not k:
         return visible, receiver_outage, states
-    sv_last = sv_last.reshape(members, m)
-    rows = np.array(sv_last, dtype=bool, copy=True)  # one read-only copy, row j for receiver j
-    rows.setflags(write=False)
+    rows = frozen_array(sv_last.reshape(members, m), dtype=bool)  # one read-only copy, row j for receiver j
+    rx_out = frozen_array(rx_last, dtype=bool)
     t_last = float(t[-1])
+    new, set_t, set_rx, set_sv = object.__new__, _SET_T, _SET_RX, _SET_SV
     new_states = []
-    for j, rx in enumerate(np.asarray(rx_last, dtype=bool).tolist()):
-        state = object.__new__(OutageState)
-        object.__setattr__(state, "t_s", t_last)
-        object.__setattr__(state, "receiver_out", rx)
-        object.__setattr__(state, "satellite_out", rows[j])
+    for rx, sv in zip(rx_out.tolist(), rows):
+        state = new(OutageState)
+        set_t(state, t_last)
+        set_rx(state, rx)
+        set_sv(state, sv)
         new_states.append(state)
+    _RECENT.remember(new_states, (t_last, rx_out, rows))  # for the next call on these states
     return visible, receiver_outage, new_states

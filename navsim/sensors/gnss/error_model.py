@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike
 from ...earth import WGS84, EarthModel
 from ...errors import ConfigError, check_nonnegative
 from ...types import FloatOrArray
-from .._common import frozen_array
+from .._common import RecentBatches, frozen_array
 from ..imu import apply as _imu_apply
 from ..imu import kernel as _imu_kernel
 from .constants import C_LIGHT
@@ -257,17 +257,20 @@ class GnssState:
     @classmethod
     def _batch(cls, t_s: float, bias: np.ndarray, drift: np.ndarray, multipath: np.ndarray) -> list[GnssState]:
         """The states of B receivers after a batched call: ``multipath`` (B, m) copied once
-        to a read-only array, receiver j gets row j as a view (no per-state checks)."""
-        rows = np.array(multipath, dtype=float, copy=True)
-        rows.setflags(write=False)
+        to a read-only array, receiver j gets row j as a view (no per-state checks); the
+        arrays are remembered with the states (:data:`_RECENT`) for the next call."""
+        rows = frozen_array(multipath)
+        bias, drift = frozen_array(bias), frozen_array(drift)
+        new, set_t, set_b, set_d, set_x = object.__new__, _SET_T, _SET_B, _SET_D, _SET_X
         out = []
-        for j, (b, d) in enumerate(zip(bias.tolist(), drift.tolist())):
-            state = object.__new__(cls)
-            object.__setattr__(state, "t_s", t_s)
-            object.__setattr__(state, "clock_bias_m", b)
-            object.__setattr__(state, "clock_drift_mps", d)
-            object.__setattr__(state, "multipath", rows[j])
+        for b, d, x in zip(bias.tolist(), drift.tolist(), rows):
+            state = new(cls)
+            set_t(state, t_s)
+            set_b(state, b)
+            set_d(state, d)
+            set_x(state, x)
             out.append(state)
+        _RECENT.remember(out, (t_s, bias, drift, rows))
         return out
 
     @classmethod
@@ -283,6 +286,13 @@ class GnssState:
         bias = model.clock_bias_m if model.clock_enabled else 0.0
         drift = model.clock_drift_mps if model.clock_enabled else 0.0
         return cls(float("nan"), bias, drift, multipath)
+
+
+# the slots' own setters (a frozen dataclass refuses setattr): for GnssState._batch
+_SET_T, _SET_B, _SET_D, _SET_X = (getattr(GnssState, name).__set__
+                                  for name in ("t_s", "clock_bias_m", "clock_drift_mps", "multipath"))
+_RECENT = RecentBatches()
+"""The GNSS states made by the last batched calls and their arrays (:func:`simulate_epochs_batch`)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -432,12 +442,17 @@ def simulate_epochs_batch(
         raise ConfigError("rngs", f"one generator per state ({members}, at least one)", len(rngs))
     position_e = np.asarray(position_e, dtype=float).reshape(k, 3) if k else np.zeros((0, 3))
     velocity_e = np.asarray(velocity_e, dtype=float).reshape(k, 3) if k else np.zeros((0, 3))
-    for state in states:
-        if state.multipath.shape != (m,):
-            raise ConfigError("state.multipath", f"shape ({m},)", state.multipath.shape)
-    t_s = states[0].t_s
-    if any(not (s.t_s == t_s or (math.isnan(s.t_s) and math.isnan(t_s))) for s in states):
-        raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({s.t_s for s in states}))
+    made = _RECENT.recall(states)  # (t_s, bias, drift, multipath) of states this function made
+    if made is not None and made[3].shape == (members, m):
+        t_s = made[0]  # made together: one epoch time, multipath rows of shape (m,)
+    else:
+        made = None
+        for state in states:
+            if state.multipath.shape != (m,):
+                raise ConfigError("state.multipath", f"shape ({m},)", state.multipath.shape)
+        t_s = states[0].t_s
+        if any(not (s.t_s == t_s or (math.isnan(s.t_s) and math.isnan(t_s))) for s in states):
+            raise ConfigError("states", "states at the same epoch time (lockstep)", sorted({s.t_s for s in states}))
     if not np.all(np.isfinite(t)):
         raise ConfigError("t", "finite times", t)
     dt = np.diff(np.concatenate([[t_s], t]))
@@ -471,9 +486,12 @@ def simulate_epochs_batch(
     bias = np.empty((members, k))
     drift = np.empty((members, k))
     multipath = np.empty((members, k, m))
-    b = np.array([s.clock_bias_m for s in states])
-    d = np.array([s.clock_drift_mps for s in states])
-    x = np.stack([s.multipath for s in states])
+    if made is not None:  # the same values as read from the states below (read-only arrays)
+        b, d, x = made[1], made[2], made[3]
+    else:
+        b = np.array([s.clock_bias_m for s in states])
+        d = np.array([s.clock_drift_mps for s in states])
+        x = np.stack([s.multipath for s in states])
     clock_on = model.clock_enabled
     for j in range(k):
         if not (first and j == 0):
