@@ -12,7 +12,8 @@ Rows
   simulator chunk generation (at least two chunk rounds); ``score=False`` (no episode
   record: scoring costs memory, not step time);
 * the same at N = 1024 with the IMU error model's NumPy path (the compiled white-noise
-  pass of :mod:`navsim.sensors.imu.kernel` switched off: the state before it);
+  pass of :mod:`navsim.sensors.imu.kernel` switched off: the state before it) and the
+  rewards by NumPy (``navsim.envs.vector.USE_KERNEL`` off): no compiled code;
 * the floor of the sensor model: drawing, for N = 1024 members with their own
   generators, only the standard normals one env-step needs (6 (R + 2) = 36 per IMU
   sample, plus the GNSS and outage blocks of one epoch per ``steps_per_epoch`` steps),
@@ -51,6 +52,13 @@ ratio of ``threads=2`` to one thread the benchmark prints
 The goal of issue 13 (``threads=2`` at least 1.7 times one thread on two idle cores) is E
 >= 0.85, i.e. f <= 0.18, when the two threads cost no more CPU than one.
 
+The machine's own ceiling (with numba): the compiled group draws alone, N = 1024 members
+on one thread against two threads drawing 512 members each at the same time (no Python
+between, nothing shared but the cores, caches and memory), in interleaved windows; its
+wall-clock ratio is the most two threads can give on this machine for work of this kind,
+and its CPU ratio what the second thread costs by itself. The vector env's threads=2 / 1
+is printed beside it as a fraction of that ceiling.
+
 Usage: ``python benchmarks/bench_env.py [--rounds 3] [--quick]``
 """
 
@@ -64,9 +72,16 @@ import time
 import gymnasium as gym
 import navsim.envs  # noqa: F401  (registers the ids)
 import numpy as np
+from navsim.envs import vector as _vector
 
 from navsim.sensors.imu import apply as imu_apply
 from navsim.sensors.imu import kernel as _imu_kernel
+
+
+def _use_kernels(on: bool) -> None:
+    """The compiled IMU pass and the vector env's compiled rewards on or off (the row
+    without numba)."""
+    imu_apply.USE_KERNEL = _vector.USE_KERNEL = on
 
 
 def _single_rate(env, action, seconds: float) -> float:
@@ -137,6 +152,38 @@ def _draw_floor(n: int, steps: int, compiled: bool = False):
     return window
 
 
+def _draw_ceiling(n: int, steps: int):
+    """The compiled group draws of :func:`_draw_floor` (the IMU block only) for ``n``
+    members: one window on this thread, or two threads drawing ``n / 2`` members each at
+    once. Returns a function timing one window: (wall s, CPU s of the process)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from navsim.scenario import load_scenario
+    from navsim.simulator import Simulator
+
+    sim = Simulator(load_scenario("paper-2012"))
+    timing, orders = sim.timing, sim.scenario.imu.orders
+    rngs = [np.random.Generator(np.random.PCG64(j)) for j in range(n)]
+    imu = np.empty((n, steps * timing.samples_per_step, 6 * (orders + 2)))
+    normal = _imu_kernel.draws("normal")
+    half = n // 2
+    pool = ThreadPoolExecutor(2, thread_name_prefix="bench-ceiling")
+    normal(rngs, imu)  # touch every page (and compile)
+
+    def window(threads: int) -> tuple[float, float]:
+        c0, t0 = time.process_time(), time.perf_counter()
+        if threads == 1:
+            normal(rngs, imu)
+        else:
+            parts = [pool.submit(normal, rngs[:half], imu[:half]), pool.submit(normal, rngs[half:], imu[half:])]
+            for part in parts:
+                part.result()
+        return time.perf_counter() - t0, time.process_time() - c0
+
+    window.close = pool.shutdown  # type: ignore[attr-defined]
+    return window
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rounds", type=int, default=3)
@@ -181,10 +228,10 @@ def main() -> None:
         steps = (4 if n >= 1024 else 2) * chunk if not args.quick else chunk
         if mode == "sync":
             steps = min(steps, 3000)
-        imu_apply.USE_KERNEL = "NumPy IMU path" not in label
+        _use_kernels("NumPy IMU path" not in label)
         for _ in range(2 * chunk if mode == "vector_entry_point" else 0):  # warm-up: both buffer sets written
             venv.step(np.zeros((n, 9)))
-        imu_apply.USE_KERNEL = True
+        _use_kernels(True)
         envs[label] = (venv, steps)
         rates[label], cpu[label], main_cpu[label] = [], [], []
     floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
@@ -192,14 +239,19 @@ def main() -> None:
     floors = {floor_label: _draw_floor(1024, 256)}
     if _imu_kernel.available():
         floors[compiled_label] = _draw_floor(1024, 256, compiled=True)
+    ceiling = _draw_ceiling(1024, 256) if _imu_kernel.available() and not args.quick else None
+    ceiling_times: dict[int, list[tuple[float, float]]] = {1: [], 2: []}
     for _ in range(rounds):  # interleaved: one window of every row per round
+        if ceiling is not None:
+            for threads in (1, 2, 1, 2):  # two windows each (short ones)
+                ceiling_times[threads].append(ceiling(threads))
         for label, (venv, steps) in envs.items():
-            imu_apply.USE_KERNEL = "NumPy IMU path" not in label
+            _use_kernels("NumPy IMU path" not in label)
             c, w, m = _vector_rate(venv, steps)
             rates[label].append(w)
             cpu[label].append(c)
             main_cpu[label].append(m)
-        imu_apply.USE_KERNEL = True
+        _use_kernels(True)
         for label, window in floors.items():
             cpu.setdefault(label, []).append(window())
     for venv, _ in envs.values():
@@ -207,7 +259,8 @@ def main() -> None:
     floor = cpu[floor_label]
 
     kernel = "compiled (numba)" if _imu_kernel.available() else "NumPy (numba not installed)"
-    print(f"IMU white-noise pass: {kernel}. Load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores (the machine may be shared); median of "
+    print(f"IMU white-noise pass: {kernel}. Load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
+          f"(the machine may be shared); median of "
           f"{rounds} window(s). Single envs: steps per wall second. Vector envs: member-steps per wall second, "
           "and per CPU second of this process (all its threads) beside the draw floor, which is CPU time on one "
           "core.\n")
@@ -233,6 +286,14 @@ def main() -> None:
               f"threads' wall time) per member-step: {efficiency:.2f} (goal 0.85); serial fraction 1/E - 1: "
               f"{1.0 / efficiency - 1.0:.2f}; CPU time per member-step, two threads / one: {one_cpu / two_cpu:.2f}; "
               f"the calling thread's share of the two threads' CPU time: {two_cpu / two_main:.2f}")
+        if ceiling is not None:
+            ceiling.close()  # type: ignore[attr-defined]
+            wall1, wall2 = (statistics.median(w for w, _ in ceiling_times[t]) for t in (1, 2))
+            cpu1, cpu2 = (statistics.median(c for _, c in ceiling_times[t]) for t in (1, 2))
+            print(f"\nMachine ceiling (the compiled draws alone, N = 1024 on one thread against 2 x 512 at once, "
+                  f"{len(ceiling_times[1])} interleaved windows each): two threads / one {wall1 / wall2:.2f} in wall "
+                  f"time, CPU two / one {cpu2 / cpu1:.2f}; the vector env's threads=2 / 1 is "
+                  f"{(two / one) / (wall1 / wall2):.2f} of that ceiling")
 
 
 if __name__ == "__main__":
