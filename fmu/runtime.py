@@ -523,6 +523,7 @@ class PlantRuntime(_RuntimeBase):
         self._gnss_bool = self.store.segments(["gnss.receiver_outage", "gnss.valid"])
         self._gnss_int = self.store.segments(["gnss.n_valid"])
         self._new_epoch = self.store.slot("gnss.new_epoch")
+        self._new_epoch_at = self._new_epoch[1].start  # its one element (an index: cheaper than the slice)
         self._chunk: Any = None  # the chunk whose rows are laid out
         self._info(self.base_scenario)
 
@@ -594,7 +595,7 @@ class PlantRuntime(_RuntimeBase):
             store.int[self._other_at] = other[i]
             epoch = self._epoch_of[i]
             if epoch is None:
-                store.bool[self._new_epoch[1]] = False
+                store.bool[self._new_epoch_at] = False
             else:
                 self._write_epoch(epoch)
         elif k:
