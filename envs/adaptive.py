@@ -84,6 +84,7 @@ from navsim.naverror import local_level_error, position_error_norm
 from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
+from .render import EnvRendering
 from .spaces import check_action
 
 if TYPE_CHECKING:  # type hints only
@@ -119,7 +120,7 @@ class NoiseAdapter:
         self.estimator.set_noise_scale(q_scale, r_scale)
 
 
-class AdaptiveFilterEnv(gym.Env):
+class AdaptiveFilterEnv(EnvRendering, gym.Env):
     """An estimator whose Q and R an agent scales (see the module docstring).
 
     Parameters
@@ -309,19 +310,6 @@ class AdaptiveFilterEnv(gym.Env):
         return tape_view(self.tape, self._k, self.tape.actions, 1.0, timing.nav_period_s, timing.duration_s,
                          timing.gnss_period_s, status=f"{self.estimator_name}: Q x {q:.3g}, R x {r:.3g}")
 
-    def render(self) -> np.ndarray | None:
-        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
-        from .render import render_env
-
-        frame, self._renderer = render_env(self, self._renderer)
-        return frame
-
-    def close(self) -> None:
-        """Release the window (if any); harmless to call more than once."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        super().close()
 
 
 class _Interval:

@@ -166,6 +166,7 @@ from .agent import resolve_estimator
 from .chunks import EpisodeTape
 from .navigation import resolve_scenario
 from .plant import TrainParameters, TrainPlant
+from .render import EnvRendering
 from .spaces import check_action
 
 if TYPE_CHECKING:
@@ -264,7 +265,7 @@ class _MapTable:
         return float(self.s[i0 + int(np.argmin(dn * dn + de * de))])
 
 
-class DrivingEnv(gym.Env):
+class DrivingEnv(EnvRendering, gym.Env):
     """A train driven on the navigation solution (see the module docstring).
 
     Parameters
@@ -579,16 +580,3 @@ class DrivingEnv(gym.Env):
         view.marks_lat, view.marks_lon = lat_m, lon_m
         return view
 
-    def render(self) -> np.ndarray | None:
-        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window."""
-        from .render import render_env
-
-        frame, self._renderer = render_env(self, self._renderer)
-        return frame
-
-    def close(self) -> None:
-        """Release the window (if any); harmless to call more than once."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        super().close()

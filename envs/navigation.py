@@ -92,6 +92,7 @@ from navsim.scenario import Scenario, load_scenario
 from navsim.signals import Layout, ObservationCodec
 
 from .chunks import EpisodeTape, PreparedChunk, prepare_chunk
+from .render import EnvRendering
 from .spaces import ACTION_SCALE, action_space, check_action, layout_space
 
 if TYPE_CHECKING:  # type hints only
@@ -124,7 +125,7 @@ def wrap_array(x: np.ndarray) -> np.ndarray:
     return wrap_angle(x)
 
 
-class NavigationEnv(gym.Env):
+class NavigationEnv(EnvRendering, gym.Env):
     """A navsim scenario as a Gymnasium environment (see the module docstring).
 
     Parameters
@@ -326,18 +327,3 @@ class NavigationEnv(gym.Env):
                                   self.action_scale)
         self.last_record = record
         return score_episode(record, track=self.sim.track)
-
-    # ------------------------------------------------------------------ rendering
-    def render(self) -> np.ndarray | None:
-        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window (:mod:`navsim.envs.render`)."""
-        from .render import render_env
-
-        frame, self._renderer = render_env(self, self._renderer)
-        return frame
-
-    def close(self) -> None:
-        """Release the window (if any); harmless to call more than once."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        super().close()

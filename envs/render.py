@@ -488,3 +488,23 @@ def render_env(env: RenderableEnv, renderer: TrackRenderer | None) -> tuple[np.n
         renderer.show(frame, env.metadata["render_fps"])
         return None, renderer
     return frame, renderer
+
+
+class EnvRendering:
+    """``render()`` and ``close()`` of the navsim envs, written once (a base listed before
+    ``gym.Env``): the frame through :func:`render_env`, the renderer kept in ``_renderer``
+    (the env's ``reset`` restarts it), the window released by ``close``."""
+
+    _renderer: TrackRenderer | None = None
+
+    def render(self) -> np.ndarray | None:
+        """"rgb_array": an (H, W, 3) uint8 frame; "human": the frame in a window (:mod:`navsim.envs.render`)."""
+        frame, self._renderer = render_env(cast("RenderableEnv", self), self._renderer)
+        return frame
+
+    def close(self) -> None:
+        """Release the window (if any); harmless to call more than once."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()  # type: ignore[misc]  # gym.Env.close, next in the env's bases

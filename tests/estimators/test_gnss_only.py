@@ -68,24 +68,13 @@ def test_cv_filter_beats_single_epoch_fixes_and_is_consistent():
     assert 0.5 * 6 < np.nanmean(nees(cv, rec.est_cov, slice(0, 6))) < 1.5 * 6
 
 
-@pytest.mark.parametrize("name", ["gnss-ls", "gnss-cv"])
-def test_step_batch_equals_repeated_step_through_an_outage(name):
-    sc = _scenario(8.0, outages=[(2.5, 5.5)])
+def _episode(duration, outages=()):
+    """Scenario, prior, context and the one chunk of a short paper-2012 episode, seed 0."""
+    sc = _scenario(duration, outages=outages)
     sim = Simulator(sc)
-    start = sim.reset(0)
+    prior = sim.reset(0).prior
     ctx = make_context(sim)
-    prn = np.asarray(sim.constellation.prn)
-    chunk = next(iter(sim.chunks(10_000)))
-    a, b = make(name), make(name)
-    a.reset(ctx, start.prior)
-    b.reset(ctx, start.prior)
-    out = a.step_batch(measurement_batch(chunk, prn, sc.timing.nav_period_s))
-    steps = [b.step(m) for m in measurements(chunk, prn, sc.timing.nav_period_s)]
-    # the same operations in both paths (no shape-dependent products): bit for bit
-    assert_same_arithmetic(out.solution, [s.as_action() for s in steps])
-    assert_same_arithmetic(out.covariance, [s.covariance for s in steps])
-    # before the first fix the prior is extrapolated with the prior covariance
-    assert np.allclose(out.covariance[0, :3, :3], start.prior.covariance[:3, :3], rtol=0.01)
+    return sc, prior, ctx, np.asarray(sim.constellation.prn), next(iter(sim.chunks(10_000)))
 
 
 def _slice(batch, a, b):
@@ -113,15 +102,10 @@ def test_step_row_and_step_equal_step_batch_bit_for_bit(name, options):
     """The step-wise path (rows of the steps between fixes predicted ahead) gives the
     batch's numbers: the same prediction, elementwise over the steps, so bit for bit,
     through epochs and a 3-s outage; ``step_row`` is the agent's fast path."""
-    sc = _scenario(8.0, outages=[(2.5, 5.5)])
-    sim = Simulator(sc)
-    start = sim.reset(0)
-    ctx = make_context(sim)
-    prn = np.asarray(sim.constellation.prn)
-    chunk = next(iter(sim.chunks(10_000)))
+    sc, prior, ctx, prn, chunk = _episode(8.0, outages=[(2.5, 5.5)])
     a, b, c = (make(name, **options) for _ in range(3))
     for est in (a, b, c):
-        est.reset(ctx, start.prior)
+        est.reset(ctx, prior)
     assert row_stepping(b) is not None
     out = a.step_batch(measurement_batch(chunk, prn, sc.timing.nav_period_s))
     ms = list(measurements(chunk, prn, sc.timing.nav_period_s))
@@ -132,6 +116,8 @@ def test_step_row_and_step_equal_step_batch_bit_for_bit(name, options):
         assert_same_arithmetic(nis, out.nis)
         assert_same_arithmetic(dof, out.nis_dof)
     assert len(b._ahead.t) == b._ahead.span > 1  # the rows were predicted ahead
+    # before the first fix the prior is extrapolated with the prior covariance
+    assert np.allclose(out.covariance[0, :3, :3], prior.covariance[:3, :3], rtol=0.01)
 
 
 @pytest.mark.parametrize("name", ["gnss-ls", "gnss-cv"])
@@ -139,19 +125,14 @@ def test_step_wise_times_of_another_source_and_a_changed_option(name):
     """Steps at times other than the simulator's ``(step + 1) dt`` are predicted alone, and
     an option changed between epochs (``set_noise_scale``: gnss-cv's ``accel_psd``; gnss-ls
     ``accel_psd`` by hand) is used from the next step on: still the batch's numbers."""
-    sc = _scenario(4.0)
-    sim = Simulator(sc)
-    start = sim.reset(0)
-    ctx = make_context(sim)
-    prn = np.asarray(sim.constellation.prn)
-    chunk = next(iter(sim.chunks(10_000)))
+    sc, prior, ctx, prn, chunk = _episode(4.0)
     dt = sc.timing.nav_period_s
     batch = measurement_batch(chunk, prn, dt)
     shifted = dataclasses.replace(batch, t=batch.t + 0.25 * dt)  # the fixes keep their own epoch times
     cut = len(batch) // 2 + 7  # between two epochs
     a, b = make(name), make(name)
-    a.reset(ctx, start.prior)
-    b.reset(ctx, start.prior)
+    a.reset(ctx, prior)
+    b.reset(ctx, prior)
 
     def change(est):
         if name == "gnss-cv":
@@ -172,49 +153,8 @@ def test_step_wise_times_of_another_source_and_a_changed_option(name):
     assert_same_arithmetic(rows, np.concatenate([first.solution, second.solution]))
     assert_same_arithmetic(covs, np.concatenate([first.covariance, second.covariance]))
     unchanged = make(name)
-    unchanged.reset(ctx, start.prior)
+    unchanged.reset(ctx, prior)
     ref = unchanged.step_batch(shifted)
     assert_same_arithmetic(covs[:cut], ref.covariance[:cut])
     assert not np.array_equal(covs[cut + 1], ref.covariance[cut + 1])  # the change took effect
 
-
-@pytest.mark.parametrize("name", ["gnss-ls", "gnss-cv"])
-def test_agent_fast_path_equals_step_path(name):
-    """``EstimatorAgent`` takes ``step_row`` (steps without an epoch as views in a reused
-    object) and gets the actions of the agent that calls ``step`` on decoded measurements."""
-    gym = pytest.importorskip("gymnasium")
-    import navsim.envs  # noqa: F401  (registers the ids)
-    from navsim.envs import EstimatorAgent
-
-    over = {"timing": {"duration_s": 4.0}, "outages": {"windows_s": [[1.5, 2.5]]}}
-    env = gym.make("navsim/PaperRail-v0", score=False, **over)
-    obs, info = env.reset(seed=1)
-    observations = []
-    while True:
-        observations.append({k: np.array(v, copy=True) for k, v in obs.items()})
-        obs, _, terminated, truncated, _ = env.step(np.zeros(9))
-        if terminated or truncated:
-            break
-    env.close()
-
-    class StepOnly:
-        def __init__(self, inner):
-            self.inner = inner
-
-        def reset(self, context, prior):
-            self.inner.reset(context, prior)
-
-        def step(self, measurement):
-            return self.inner.step(measurement)
-
-    est = make(name)
-    fast, plain = EstimatorAgent(est), EstimatorAgent(StepOnly(make(name)))
-    fast.reset(info)
-    plain.reset(info)
-    assert fast._step_row is not None and plain._step_row is None
-    for o in observations:
-        x, y = fast.act(o), plain.act(o)
-        assert_same_arithmetic(np.asarray(x), np.asarray(y), name)
-        assert_same_arithmetic(x.extras[0], y.extras[0], "covariance")
-        assert x.extras[1:3] == y.extras[1:3]  # NIS (None or a float) and its dof
-    assert len(est._ahead.t) == est._ahead.span > 1  # the agent's steps were predicted ahead

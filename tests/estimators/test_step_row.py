@@ -79,7 +79,7 @@ class _StepOnly:
         return self.inner.step(measurement)
 
 
-@pytest.mark.parametrize("name", FAST)
+@pytest.mark.parametrize("name", [*FAST, "gnss-ls", "gnss-cv"])  # the GNSS-only ones: tests/estimators/test_gnss_only.py
 def test_agent_fast_path_equals_step_path(name):
     gym = pytest.importorskip("gymnasium")
     import navsim.envs  # noqa: F401  (registers the ids)
