@@ -85,6 +85,21 @@ def test_spec_errors_name_the_field(tmp_path, patch, field):
     assert info.value.source == "camp.toml"
 
 
+@pytest.mark.parametrize("top, drop, field, expected", [
+    ("", "[[estimators]]", "estimators", "a non-empty array of tables [[estimators]]"),
+    ("estimators = [1]\n", "[[estimators]]", "estimators[0]", "a table with name, label, options"),
+    ('estimators = [{name = "gnss-ls", colour = 1}]\n', "[[estimators]]", "estimators[0].colour", "one of the keys"),
+    ("scenarios = []\n", "[[scenarios]]", "scenarios", "a non-empty array of tables [[scenarios]]"),
+])
+def test_spec_array_of_tables_errors(tmp_path, top, drop, field, expected):
+    """[[scenarios]] and [[estimators]]: a non-empty array of tables with known keys."""
+    head, tail = SPEC.split(drop, 1)
+    rest = "" if drop == "[[estimators]]" else tail[tail.index("[[estimators]]"):]
+    with pytest.raises(ConfigError) as info:
+        _spec(tmp_path, top + head + rest)
+    assert info.value.field == field and expected in info.value.expected
+
+
 def test_estimator_options_enter_key_and_label(tmp_path):
     text = SPEC.replace('name = "along-track"', 'name = "gnss-ls"\noptions = { }\nlabel = "ls2"', 1)
     with pytest.raises(ConfigError) as info:  # same estimator, same options twice

@@ -3,6 +3,7 @@
 import csv
 
 import numpy as np
+import pytest
 
 from navsim.cli import main
 from navsim.io import GNSS_KEYS, STEP_KEYS
@@ -48,3 +49,15 @@ def test_bad_input_exits_2_with_the_field(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "timing.nav_period_s" in err and "expected" in err
     assert not (tmp_path / "x.npz").exists()
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--seed", "-1", "expected an integer >= 0, got '-1'"),
+    ("--seed", "x", "expected an integer >= 0, got 'x'"),
+    ("--chunk", "0", "expected a whole number >= 1, got '0'"),
+    ("--chunk", "1.5", "expected a whole number >= 1, got '1.5'"),
+])
+def test_integer_options_refused_in_one_line(tmp_path, capsys, option, value, message):
+    assert main(["simulate", "paper-2012", "-o", str(tmp_path / "x.npz"), option, value]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

@@ -11,7 +11,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 from ..errors import ConfigError, NavsimError
 
@@ -96,6 +96,20 @@ def _check_keys(table: dict, allowed: Iterable[str], where: str, source: str | N
                           table[extra[0]], source=source)
 
 
+def _tables(data: dict, key: str, keys: tuple[str, ...], source: str | None) -> Iterator[tuple[str, dict]]:
+    """The tables of the non-empty array ``[[key]]``, each as ``(where, table)``, checked to be
+    tables with no keys but ``keys``."""
+    raw = data.get(key)
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(key, f"a non-empty array of tables [[{key}]]", raw, source=source)
+    for i, entry in enumerate(raw):
+        where = f"{key}[{i}]"
+        if not isinstance(entry, dict):
+            raise ConfigError(where, f"a table with {', '.join(keys)}", entry, source=source)
+        _check_keys(entry, keys, where, source)
+        yield where, entry
+
+
 def _seeds(value: Any, source: str | None) -> tuple[int, ...]:
     from ..report import parse_seeds
 
@@ -143,15 +157,8 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
     if not isinstance(common, dict):
         raise ConfigError("overrides", "a table of scenario overrides", common, source=source)
 
-    raw_scen = data.get("scenarios")
-    if not isinstance(raw_scen, list) or not raw_scen:
-        raise ConfigError("scenarios", "a non-empty array of tables [[scenarios]]", raw_scen, source=source)
     scenarios: list[ScenarioEntry] = []
-    for i, entry in enumerate(raw_scen):
-        where = f"scenarios[{i}]"
-        if not isinstance(entry, dict):
-            raise ConfigError(where, "a table with name, label, overrides", entry, source=source)
-        _check_keys(entry, ("name", "label", "overrides"), where, source)
+    for where, entry in _tables(data, "scenarios", ("name", "label", "overrides"), source):
         name = entry.get("name")
         if not isinstance(name, str) or not name:
             raise ConfigError(f"{where}.name", "a bundled scenario name or a .toml path", name, source=source)
@@ -174,16 +181,9 @@ def campaign_from_dict(data: dict, base_dir: str | Path = ".", stem: str = "camp
             raise ConfigError(f"{where}.label", "a unique non-empty label without '/'", label, source=source)
         scenarios.append(ScenarioEntry(label, scenario, scenario.config_hash()))
 
-    raw_est = data.get("estimators")
-    if not isinstance(raw_est, list) or not raw_est:
-        raise ConfigError("estimators", "a non-empty array of tables [[estimators]]", raw_est, source=source)
     have = available()
     estimators: list[EstimatorEntry] = []
-    for i, entry in enumerate(raw_est):
-        where = f"estimators[{i}]"
-        if not isinstance(entry, dict):
-            raise ConfigError(where, "a table with name, label, options", entry, source=source)
-        _check_keys(entry, ("name", "label", "options"), where, source)
+    for where, entry in _tables(data, "estimators", ("name", "label", "options"), source):
         name = entry.get("name")
         if not isinstance(name, str):
             raise ConfigError(f"{where}.name", f"one of {', '.join(have)} or an import path package.module:Factory",
