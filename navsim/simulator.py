@@ -123,7 +123,25 @@ class ImuBlock:
 
 
 @dataclass(frozen=True, slots=True)
-class Chunk:
+class _ChunkFields:
+    """The fields :class:`Chunk` and :class:`ChunkBatch` share (one source for both)."""
+
+    step0: int
+    t: np.ndarray
+    truth: TrueState
+    imu: ImuBlock
+    gnss: gnss_mod.GnssEpochs | None
+    gnss_step: np.ndarray
+    receiver_outage: np.ndarray
+    odometer: odometer_mod.OdometerOutput | None = None
+    baro: baro_mod.BaroOutput | None = None
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True, slots=True)
+class Chunk(_ChunkFields):
     """Truth and measurements of ``n`` consecutive navigation steps.
 
     Attributes
@@ -147,22 +165,9 @@ class Chunk:
         ``pressure_pa``, ``bias_pa``: (n,)), None without one (:mod:`navsim.sensors.baro`).
     """
 
-    step0: int
-    t: np.ndarray
-    truth: TrueState
-    imu: ImuBlock
-    gnss: gnss_mod.GnssEpochs | None
-    gnss_step: np.ndarray
-    receiver_outage: np.ndarray
-    odometer: odometer_mod.OdometerOutput | None = None
-    baro: baro_mod.BaroOutput | None = None
-
-    def __len__(self) -> int:
-        return len(self.t)
-
 
 @dataclass(frozen=True, slots=True)
-class ChunkBatch:
+class ChunkBatch(_ChunkFields):
     """The chunks of B lockstep episodes of one scenario (:class:`SimulatorBatch`).
 
     Attributes
@@ -181,19 +186,6 @@ class ChunkBatch:
     baro : BaroOutput or None
         Arrays (B, n); None without a barometer.
     """
-
-    step0: int
-    t: np.ndarray
-    truth: TrueState
-    imu: ImuBlock
-    gnss: gnss_mod.GnssEpochs | None
-    gnss_step: np.ndarray
-    receiver_outage: np.ndarray
-    odometer: odometer_mod.OdometerOutput | None = None
-    baro: baro_mod.BaroOutput | None = None
-
-    def __len__(self) -> int:
-        return len(self.t)
 
     @property
     def size(self) -> int:

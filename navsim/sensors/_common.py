@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import collections
+import math
 import operator
 import threading
-from typing import Any, Sequence
+from typing import Any, Sequence, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike
 
-__all__ = ["frozen_array", "RecentBatches"]
+from ..errors import ConfigError
+
+__all__ = ["frozen_array", "RecentBatches", "lockstep_members", "positive_step"]
+
+_State = TypeVar("_State")
 
 
 def frozen_array(value: ArrayLike, dtype: DTypeLike = float) -> np.ndarray:
@@ -61,3 +66,29 @@ class RecentBatches:
         if len(made) != len(states) or not all(map(operator.is_, made, states)):
             return None
         return arrays
+
+
+def positive_step(dt: float) -> float:
+    """``dt`` as a float, checked positive and finite (the step of a batched sensor call, s)."""
+    dt = float(dt)
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise ConfigError("dt", "a positive finite step, s", dt)
+    return dt
+
+
+def lockstep_members(states: Sequence[_State], rngs: Sequence[np.random.Generator], index: str,
+                     kind: type | None = None) -> tuple[list[_State], list[np.random.Generator], Any]:
+    """The members of a batched sensor call, checked: at least one state, one generator per
+    state, each state a ``kind`` (when given), all at the same value of their attribute
+    ``index`` (lockstep). Returns the states and generators as lists and that value."""
+    states, rngs = list(states), list(rngs)
+    if not states or len(rngs) != len(states):
+        raise ConfigError("rngs", f"one generator per state ({len(states)}, at least one)", len(rngs))
+    if kind is not None:
+        for state in states:
+            if not isinstance(state, kind):
+                raise ConfigError("state", f"an {kind.__name__}", type(state).__name__)
+    value = getattr(states[0], index)
+    if any(getattr(s, index) != value for s in states):
+        raise ConfigError("states", f"states at the same {index} (lockstep)", sorted({getattr(s, index) for s in states}))
+    return states, rngs, value

@@ -81,6 +81,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
+from ._common import lockstep_members, positive_step
 from .imu import first_order_recursion
 
 if TYPE_CHECKING:
@@ -293,15 +294,8 @@ def simulate_baro_batch(h_true: ArrayLike, model: BaroModel, states: Sequence[Ba
     """
     if not isinstance(model, BaroModel):
         raise ConfigError("model", "a BaroModel", type(model).__name__)
-    dt = float(dt)
-    if not (dt > 0.0 and math.isfinite(dt)):
-        raise ConfigError("dt", "a positive finite step, s", dt)
-    states, rngs = list(states), list(rngs)
-    if not states or len(rngs) != len(states):
-        raise ConfigError("rngs", f"one generator per state ({len(states)}, at least one)", len(rngs))
-    index = states[0].step_index
-    if any(s.step_index != index for s in states):
-        raise ConfigError("states", "states at the same step_index (lockstep)", sorted({s.step_index for s in states}))
+    dt = positive_step(dt)
+    states, rngs, index = lockstep_members(states, rngs, "step_index")
     h_true = np.asarray(h_true, dtype=float)
     if h_true.ndim != 1:
         raise ConfigError("h_true", "a 1-D array of heights, m", h_true.shape)

@@ -95,6 +95,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
+from ._common import lockstep_members, positive_step
 from .imu import first_order_recursion
 
 if TYPE_CHECKING:
@@ -353,18 +354,8 @@ def simulate_odometer_batch(ds_true: ArrayLike, accel: ArrayLike, model: Odomete
     """
     if not isinstance(model, OdometerModel):
         raise ConfigError("model", "an OdometerModel", type(model).__name__)
-    dt = float(dt)
-    if not (dt > 0.0 and math.isfinite(dt)):
-        raise ConfigError("dt", "a positive finite step, s", dt)
-    states, rngs = list(states), list(rngs)
-    if not states or len(rngs) != len(states):
-        raise ConfigError("rngs", f"one generator per state ({len(states)}, at least one)", len(rngs))
-    for state in states:
-        if not isinstance(state, OdometerState):
-            raise ConfigError("state", "an OdometerState", type(state).__name__)
-    index = states[0].step_index
-    if any(s.step_index != index for s in states):
-        raise ConfigError("states", "states at the same step_index (lockstep)", sorted({s.step_index for s in states}))
+    dt = positive_step(dt)
+    states, rngs, index = lockstep_members(states, rngs, "step_index", OdometerState)
     ds_true = np.asarray(ds_true, dtype=float)
     accel = np.asarray(accel, dtype=float)
     if ds_true.ndim != 1 or accel.shape != ds_true.shape:
