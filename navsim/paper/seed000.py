@@ -506,21 +506,16 @@ def run(plot_dir: str | None = None, quick: bool = False) -> list[dict]:
     """Reproduce the experiments of seed 000; see the module docstring."""
     rows: list[dict] = []
 
-    coning = {name: coning_drift(name) for _, name, _, _ in CONING_PAPER}
-    for ref, name, order, paper in CONING_PAPER:
-        slope, coef = fit_leading(_X_VALUES, coning[name], order)
-        rows.append({"ref": ref, "quantity": f"coning drift order in W*dT, {name}", "paper": order,
-                     "navsim": slope, "unit": "-"})
-        rows.append({"ref": ref, "quantity": f"coning drift coefficient |eps|/(alpha^2 W/2)/(W dT)^{order}, {name}",
-                     "paper": paper, "navsim": abs(coef), "unit": "-"})
-
-    sculling = {name: sculling_error(name) for _, name, _, _ in SCULLING_PAPER}
-    for ref, name, order, paper in SCULLING_PAPER:
-        slope, coef = fit_leading(_X_VALUES, sculling[name], order)
-        rows.append({"ref": ref, "quantity": f"sculling error order in W*dT, {name}", "paper": order,
-                     "navsim": slope, "unit": "-"})
-        rows.append({"ref": ref, "quantity": f"sculling error coefficient |dW|/(theta0 a0/2)/(W dT)^{order}, {name}",
-                     "paper": paper, "navsim": abs(coef), "unit": "-"})
+    curves_of: dict[str, dict[str, np.ndarray]] = {}  # the coning and sculling curves, for the plots
+    for what, scale, table, error in (("coning drift", "|eps|/(alpha^2 W/2)", CONING_PAPER, coning_drift),
+                                      ("sculling error", "|dW|/(theta0 a0/2)", SCULLING_PAPER, sculling_error)):
+        curves = curves_of[what] = {name: error(name) for _, name, _, _ in table}
+        for ref, name, order, paper in table:
+            slope, coef = fit_leading(_X_VALUES, curves[name], order)
+            rows.append({"ref": ref, "quantity": f"{what} order in W*dT, {name}", "paper": order,
+                         "navsim": slope, "unit": "-"})
+            rows.append({"ref": ref, "quantity": f"{what} coefficient {scale}/(W dT)^{order}, {name}",
+                         "paper": paper, "navsim": abs(coef), "unit": "-"})
 
     local = _local_error_study()
     for item in local:
@@ -562,7 +557,7 @@ def run(plot_dir: str | None = None, quick: bool = False) -> list[dict]:
                      "paper": 1.0, "navsim": float(pseudo[key]["exact"][-1]), "unit": "-"})
 
     if plot_dir is not None:
-        _plots(plot_dir, coning, sculling, local, steps, position, pseudo)
+        _plots(plot_dir, curves_of["coning drift"], curves_of["sculling error"], local, steps, position, pseudo)
     return rows
 
 
