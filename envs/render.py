@@ -110,19 +110,14 @@ def nice_step(span: float, target: int = 5) -> float:
     """A round tick step (1, 2 or 5 x 10^k) giving about ``target`` ticks over ``span``."""
     if not (span > 0 and math.isfinite(span)):
         return 1.0
-    raw = span / target
-    mag = 10.0 ** math.floor(math.log10(raw))
-    for m in (1.0, 2.0, 5.0, 10.0):
-        if raw <= m * mag * (1 + 1e-9):
-            return m * mag
-    return 10.0 * mag  # pragma: no cover
+    return _nice_ceiling(span / target, 1e-9)
 
 
-def _nice_ceiling(x: float) -> float:
-    """The smallest 1, 2 or 5 x 10^k >= x (x > 0)."""
+def _nice_ceiling(x: float, tol: float = 1e-12) -> float:
+    """The smallest 1, 2 or 5 x 10^k >= x (x > 0; to a relative ``tol``)."""
     mag = 10.0 ** math.floor(math.log10(x))
     for m in (1.0, 2.0, 5.0, 10.0):
-        if x <= m * mag * (1 + 1e-12):
+        if x <= m * mag * (1 + tol):
             return m * mag
     return 10.0 * mag  # pragma: no cover
 
