@@ -132,8 +132,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import TYPE_CHECKING, Callable, Sequence, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..earth import mat_en
 from ..errors import ConfigError
@@ -171,6 +173,10 @@ from .base import (
 )
 from .tightly import atmosphere_delays
 
+if TYPE_CHECKING:  # type hints only
+    from ..earth import EarthModel
+    from ..types import GnssObservation, NominalGnss, NominalOdometer
+
 __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_model"]
 
 # Error of a least-squares fix (position + clock) per metre of a common-mode zenith delay
@@ -184,7 +190,9 @@ __all__ = ["LooselyCoupledEkf", "gnss_fixes", "FIX_ZENITH_FACTORS", "fix_error_m
 FIX_ZENITH_FACTORS = {"ionosphere": (0.15, 2.0), "troposphere": (0.55, 3.6)}
 
 
-def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere=None, earth=None):
+def gnss_fixes(observations: Sequence[GnssObservation], min_satellites: int = 4, initial_e: ArrayLike | None = None,
+               atmosphere: tuple[float, float, float, float] | None = None,
+               earth: EarthModel | None = None) -> tuple[np.ndarray, ...]:
     """Position and velocity fixes of a list of :class:`GnssObservation` (vectorised).
 
     ``initial_e`` (3,): a starting point of the Gauss-Newton iteration for every epoch
@@ -225,6 +233,8 @@ def gnss_fixes(observations, min_satellites: int = 4, initial_e=None, atmosphere
     n_valid = valid.sum(axis=1)
     fix = least_squares_fix(sat_pos, rho, valid, initial=initial_e)
     if atmosphere is not None:  # (LC.6) the receiver's a-priori correction
+        if earth is None:
+            raise ConfigError("gnss_fixes earth", "the Earth model with an atmosphere correction", None)
         iono_z, tropo_z, shell_m, scale_m = atmosphere
         start = fix.position_e if initial_e is None else np.where(fix.ok[:, None], fix.position_e, initial_e)
         lat, lon, h = earth.ecef_to_geodetic(start)
@@ -241,7 +251,8 @@ _LS_MAX_ITER: int = (least_squares_fix.__kwdefaults__ or {})["max_iter"]
 _LS_TOL_M: float = (least_squares_fix.__kwdefaults__ or {})["tol_m"]
 
 
-def _one_epoch_fixes(kernels, o, min_satellites: int, initial_e) -> tuple[np.ndarray, ...]:
+def _one_epoch_fixes(kernels: tuple[Callable[..., None], Callable[..., None]], o: GnssObservation,
+                     min_satellites: int, initial_e: ArrayLike | None) -> tuple[np.ndarray, ...]:
     """:func:`gnss_fixes` of one epoch without the a-priori atmosphere, by the compiled
     kernels (:func:`navsim.receiver.epoch_kernels`) called directly: the inputs, starting
     state and kernel calls of :func:`~navsim.receiver.least_squares_fix` and
@@ -274,7 +285,8 @@ def _one_epoch_fixes(kernels, o, min_satellites: int, initial_e) -> tuple[np.nda
             cov_vel[:, :3, :3], n_valid)
 
 
-def fix_error_model(gnss, height_m: float = 0.0, tau_s=(1200.0, 7200.0)) -> tuple[np.ndarray, np.ndarray]:
+def fix_error_model(gnss: NominalGnss, height_m: float = 0.0,
+                    tau_s: tuple[float, float] = (1200.0, 7200.0)) -> tuple[np.ndarray, np.ndarray]:
     """Stationary sigma (3,) and correlation time (3,) of the ENU Gauss-Markov fix error.
 
     The residual zenith delays of a standalone receiver after its a-priori correction
@@ -431,18 +443,21 @@ class LooselyCoupledEkf(NoiseScalable):
         spec = getattr(context, "odometer", None)
         self._odo = spec if self.odometer == "auto" else None
         gn = context.gnss
-        self._atmosphere = None
-        self._fix_index = None  # first auxiliary index of the fix-error states
+        self._atmosphere: tuple[float, float, float, float] | None = None
+        self._fix_index: int | None = None  # first auxiliary index of the fix-error states
         if self.fix_error == "auto" and getattr(gn, "atmosphere_modelled", False):
             sigma, tau_fix = fix_error_model(gn, float(prior.h), self.fix_error_tau_s)
             if sigma[2] > 0.0:
                 self._atmosphere = (gn.ionosphere_zenith_m, gn.troposphere_zenith_m, gn.ionosphere_shell_height_m,
                                     gn.troposphere_scale_height_m)
-        aux_var, aux_psd, aux_tau = [], [], []
-        if self._odo is not None:  # the odometer scale-factor error (a random walk)
-            tau = float(spec.scale_factor_tau_s)
-            psd = 2.0 * spec.scale_factor_gm_sigma**2 / tau if math.isfinite(tau) else 0.0
-            aux_var.append(spec.scale_factor_sigma**2 + spec.scale_factor_gm_sigma**2)
+        aux_var: list[float] = []
+        aux_psd: list[float] = []
+        aux_tau: list[float] = []
+        odo = self._odo
+        if odo is not None:  # the odometer scale-factor error (a random walk)
+            tau = float(odo.scale_factor_tau_s)
+            psd = 2.0 * odo.scale_factor_gm_sigma**2 / tau if math.isfinite(tau) else 0.0
+            aux_var.append(odo.scale_factor_sigma**2 + odo.scale_factor_gm_sigma**2)
             aux_psd.append(psd)
             aux_tau.append(math.inf)
         if self._atmosphere is not None:  # (LC.8) three Gauss-Markov fix-error states
@@ -451,20 +466,23 @@ class LooselyCoupledEkf(NoiseScalable):
             aux_psd.extend(2.0 * sigma**2 / tau_fix)
             aux_tau.extend(tau_fix)
         baro_spec = getattr(context, "baro", None)
-        self._baro = baro_spec if self.baro == "auto" else None
-        self._baro_index = None
-        if self._baro is not None:  # (LC.9) the Gauss-Markov altimeter bias
+        baro = self._baro = baro_spec if self.baro == "auto" else None
+        self._baro_index: int | None = None
+        if baro is not None:  # (LC.9) the Gauss-Markov altimeter bias
             self._baro_index = len(aux_var)
-            aux_var.append(baro_spec.bias_sigma_m**2)
-            aux_psd.append(2.0 * baro_spec.bias_sigma_m**2 / baro_spec.bias_tau_s)
-            aux_tau.append(baro_spec.bias_tau_s)
+            aux_var.append(baro.bias_sigma_m**2)
+            aux_psd.append(2.0 * baro.bias_sigma_m**2 / baro.bias_tau_s)
+            aux_tau.append(baro.bias_tau_s)
             self._baro_steps = max(1, round(self.baro_period_s / context.nav_period_s))
-            self._baro_var = max(baro_spec.noise_sigma_m**2 + baro_spec.resolution_m**2 / 12.0, 1e-12)
+            self._baro_var = max(baro.noise_sigma_m**2 + baro.resolution_m**2 / 12.0, 1e-12)
             self.baro_nis = math.nan
+        methods = self.methods
         if not aux_var:
-            self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, **self.methods)
+            self.engine = ErrorStateIns(context, prior, noise, interval_steps=steps, coning=methods["coning"],
+                                        sculling=methods["sculling"], position=methods["position"])
         else:
-            self.engine = AuxStateIns(context, prior, noise, interval_steps=steps, **self.methods,
+            self.engine = AuxStateIns(context, prior, noise, interval_steps=steps, coning=methods["coning"],
+                                      sculling=methods["sculling"], position=methods["position"],
                                       aux_variance=aux_var, aux_psd=aux_psd,
                                       aux_tau_s=aux_tau if self._atmosphere is not None or self._baro is not None
                                       else None)
@@ -472,7 +490,7 @@ class LooselyCoupledEkf(NoiseScalable):
             self._odo_steps = max(1, round(self.odometer_period_s / context.nav_period_s))
             self._odo_sum, self._odo_n, self._odo_missing = 0.0, 0, False
             self._odo_vb = np.zeros(3)
-            self._odo_v0 = None  # INS forward speed at the last odometer update
+            self._odo_v0: float | None = None  # INS forward speed at the last odometer update
             self.odometer_nis = math.nan
         self.sigma_pos = self.measurement_scale * context.gnss.pseudorange_sigma_m
         self.sigma_vel = self.measurement_scale * context.gnss.doppler_sigma_mps
@@ -486,6 +504,18 @@ class LooselyCoupledEkf(NoiseScalable):
         self.lever_arm_b = np.array(arm, dtype=float)
         self._with_lever = bool(np.any(self.lever_arm_b != 0.0))
         self._no_aiding = self._odo is None and self._baro is None
+
+    def _engine(self) -> ErrorStateIns:
+        """The engine of the episode (made by :meth:`reset`)."""
+        eng = self.engine
+        if eng is None:
+            raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
+        return eng
+
+    def _aux_engine(self) -> AuxStateIns:
+        """The engine when the options in use gave it auxiliary states (odometer scale,
+        fix errors, barometer bias: :meth:`reset` made an :class:`AuxStateIns`)."""
+        return cast(AuxStateIns, self._engine())
 
     def _ins_only_step(self, m: Measurement) -> bool:
         """True when step ``m`` makes no update (no GNSS epoch, no odometer or barometer update due)."""
@@ -507,12 +537,12 @@ class LooselyCoupledEkf(NoiseScalable):
         auxiliary states of the options in use (fix errors, odometer scale, baro bias)."""
         extra = {"diverged": self.diverged, "gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy()}
         if self._fix_index is not None:
-            extra["fix_error_enu"] = eng.aux_now()[self._fix_index:self._fix_index + 3]
+            extra["fix_error_enu"] = self._aux_engine().aux_now()[self._fix_index:self._fix_index + 3]
         if self._odo is not None:
-            extra["odometer_scale"] = float(eng.aux[0])
+            extra["odometer_scale"] = float(self._aux_engine().aux[0])
             extra["odometer_nis"] = self.odometer_nis
-        if self._baro is not None:
-            extra["baro_bias_m"] = float(eng.aux_now()[self._baro_index])
+        if self._baro_index is not None:
+            extra["baro_bias_m"] = float(self._aux_engine().aux_now()[self._baro_index])
         return extra
 
     def step_row(self, measurement: Measurement) -> StepRow:
@@ -564,8 +594,8 @@ class LooselyCoupledEkf(NoiseScalable):
             extra["n_valid"] = self.last_update.get("n_valid", 0)
         nis = None if math.isnan(out.nis[0]) else float(out.nis[0])
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
-                        covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
-                        extra=extra)
+                        covariance=None if out.covariance is None else out.covariance[0], nis=nis,
+                        nis_dof=int(out.nis_dof[0]) if nis is not None else None, extra=extra)
 
     def _epoch_only(self, m: Measurement) -> bool:
         """True when step ``m`` is a GNSS epoch whose only update is the GNSS one, without a
@@ -578,8 +608,9 @@ class LooselyCoupledEkf(NoiseScalable):
         :meth:`step_batch` on a batch of one (the fix of the epoch, the INS step, the
         update), with the INS step on the engine's one-step path
         (:meth:`ErrorStateIns.advance_step`, the same numbers) and no batch built."""
-        eng = self.engine
-        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes((m.gnss,), self.min_satellites, self._initial_e,
+        eng = self._engine()
+        gnss = cast("GnssObservation", m.gnss)  # an epoch (_epoch_only)
+        ok, pos_e, cov_pos, vel_e, cov_vel, n_valid = gnss_fixes((gnss,), self.min_satellites, self._initial_e,
                                                                  self._atmosphere, eng.earth)
         rows, cov = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
         nis = nis_dof = None
@@ -599,7 +630,7 @@ class LooselyCoupledEkf(NoiseScalable):
     def _epoch_step(self, m: Measurement) -> Estimate:
         """:meth:`step` at a step of :meth:`_epoch_only`: :meth:`_epoch_row` as an :class:`Estimate`."""
         row, covariance, nis, nis_dof = self._epoch_row(m)
-        extra = self._ins_extra(self.engine)  # no odometer on this path
+        extra = self._ins_extra(self._engine())  # no odometer on this path
         if self._baro is not None:
             extra["baro_nis"] = self.baro_nis
         extra["n_valid"] = self.last_update.get("n_valid", 0)
@@ -623,14 +654,14 @@ class LooselyCoupledEkf(NoiseScalable):
         body = eng.prepare(batch.dtheta_sub, batch.dv_sub, batch.dtheta_r, batch.dv_r)
         # update steps: the epochs with a fix (missing data is a value: an epoch without
         # one is just INS) and, with an odometer, the ends of the odometer intervals
-        events = {index: e for e, (index, _) in enumerate(epochs) if ok[e]}
-        odo_due = ()
+        events: dict[int, int | None] = {index: e for e, (index, _) in enumerate(epochs) if ok[e]}
+        odo_due: set[int] = set()
         if self._odo is not None:
             steps = np.asarray(batch.step)
             odo_due = set(np.flatnonzero((steps + 1) % self._odo_steps == 0).tolist())
             odo_ds = getattr(batch, "odometer_ds_m", None)
             events.update({i: None for i in odo_due if i not in events})
-        baro_due = ()
+        baro_due: set[int] = set()
         baro_alt = getattr(batch, "baro_alt_m", None)
         if self._baro is not None and baro_alt is not None:
             baro_due = set(np.flatnonzero((np.asarray(batch.step) + 1) % self._baro_steps == 0).tolist())
@@ -657,7 +688,7 @@ class LooselyCoupledEkf(NoiseScalable):
                         nis[index], nis_dof[index] = nis[index] + value, nis_dof[index] + dof
                     else:
                         nis[index], nis_dof[index] = value, dof
-            if index in baro_due:
+            if index in baro_due and baro_alt is not None:
                 value, dof = self._baro_update(float(baro_alt[index]))
                 if dof:
                     if nis_dof[index]:
@@ -676,15 +707,17 @@ class LooselyCoupledEkf(NoiseScalable):
         return EstimateBatch(solution, covariance, nis, nis_dof)
 
     # ------------------------------------------------------------------------ update
-    def _update(self, pos_e, cov_pos, vel_e, cov_vel, omega_ib_b=None) -> tuple[float, int]:
-        eng = self.engine
+    def _update(self, pos_e: np.ndarray, cov_pos: np.ndarray, vel_e: np.ndarray, cov_vel: np.ndarray,
+                omega_ib_b: np.ndarray | None = None) -> tuple[float, int]:
+        eng = self._engine()
         st = eng.state
         earth = eng.earth
         m_en = mat_en(st.lat, st.lon)
         r_ins = earth.geodetic_to_ecef(st.lat, st.lon, st.h)
         y_pos = m_en @ (r_ins - pos_e)  # y = r_ins - r_fix = dr + v
         if self._with_lever:  # (LC.1), (LC.2): the fix is the antenna's
-            arm_n, arm_vel_n, L = lever_arm_terms(quat_to_mat(st.quat_nb), omega_ib_b, self.lever_arm_b,
+            omega = cast(np.ndarray, omega_ib_b)  # step_batch passes the epoch step's rate with a lever arm
+            arm_n, arm_vel_n, L = lever_arm_terms(quat_to_mat(st.quat_nb), omega, self.lever_arm_b,
                                                   earth.earth_rate_n(st.lat))
             y_pos = y_pos + arm_n
         R_pos = self.sigma_pos**2 * (m_en @ cov_pos @ m_en.T)
@@ -707,8 +740,9 @@ class LooselyCoupledEkf(NoiseScalable):
             R, y = R_pos, y_pos
         if self._fix_index is not None:  # (LC.8) y = dr + db - w with the fix error b
             i = N_STATES + self._fix_index
-            y[:3] += eng.aux_now()[self._fix_index:self._fix_index + 3]
-            H = np.concatenate([H, np.zeros((len(y), eng.n_states - N_STATES))], axis=1)
+            aux = self._aux_engine()
+            y[:3] += aux.aux_now()[self._fix_index:self._fix_index + 3]
+            H = np.concatenate([H, np.zeros((len(y), aux.n_states - N_STATES))], axis=1)
             H[0, i], H[1, i + 1], H[2, i + 2] = 1.0, 1.0, 1.0
         value, dx = eng.update(H, 0.5 * (R + R.T), y)
         self._odometer_correct(dx)
@@ -724,14 +758,14 @@ class LooselyCoupledEkf(NoiseScalable):
         """The INS rows already summed for the odometer carry the error an update just
         removed: remove it from them too (first order, as if constant over the interval)."""
         if self._odo is not None and self._odo_n:
-            st = self.engine.state
+            st = self._engine().state
             self._odo_vb = self._odo_vb - self._odo_n * (
                 body_velocity_terms(quat_to_mat(st.quat_nb), st.velocity_n)[1] @ dx[:N_STATES])
 
     def _baro_update(self, altitude_m: float) -> tuple[float, int]:
         """(LC.9) at the current step with the pressure altitude ``altitude_m``; (nis, dof)."""
-        eng = self.engine
-        i = self._baro_index
+        eng = self._aux_engine()
+        i = cast(int, self._baro_index)  # made by reset with the barometer
         if not math.isfinite(altitude_m):
             self.baro_nis = math.nan
             return math.nan, 0
@@ -744,7 +778,8 @@ class LooselyCoupledEkf(NoiseScalable):
         return value, 1
 
     # ------------------------------------------------------------------------ odometer
-    def _odometer_accumulate(self, rows, odo_ds, start: int, stop: int) -> None:
+    def _odometer_accumulate(self, rows: np.ndarray, odo_ds: Sequence[float] | np.ndarray | None, start: int,
+                             stop: int) -> None:
         """Add the INS body velocities C_k^T v_k and the odometer distances of steps start:stop."""
         mats = mat_nb_from_hpr(rows[:, 6], rows[:, 7], rows[:, 8])
         self._odo_vb = self._odo_vb + np.einsum("kji,kj->i", mats, rows[:, 3:6])
@@ -756,8 +791,8 @@ class LooselyCoupledEkf(NoiseScalable):
 
     def _odometer_update(self) -> tuple[float, int]:
         """(LC.3)-(LC.4) at the current step; returns (nis, dof) (dof 0: no update)."""
-        eng = self.engine
-        spec = self._odo
+        eng = self._aux_engine()
+        spec = cast("NominalOdometer", self._odo)  # an odometer update: reset found one
         count, missing = self._odo_n, self._odo_missing
         vb_mean = self._odo_vb / max(count, 1)
         D = self._odo_sum
@@ -799,5 +834,6 @@ class LooselyCoupledEkf(NoiseScalable):
     @property
     def bias_estimates(self) -> tuple[np.ndarray, np.ndarray]:
         """(gyro_bias rad/s, accel_bias m/s^2) in body axes."""
-        return self.engine.gyro_bias.copy(), self.engine.accel_bias.copy()
+        eng = self._engine()
+        return eng.gyro_bias.copy(), eng.accel_bias.copy()
 

@@ -8,7 +8,7 @@ intervals: :mod:`navsim.estimators._inserror`.
 from __future__ import annotations
 
 import math
-from typing import Callable, Generic, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Callable, Generic, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,7 +40,11 @@ from .model import (
 )
 from .terms import BodyTerms, StepTerms, body_terms
 
+if TYPE_CHECKING:  # type hints only
+    from ...types import Context, Prior
+
 T = TypeVar("T")
+Arr = np.ndarray | None  # an optional input array (sub-sample increments, a batch's fields)
 
 
 class _InWork(Generic[T]):
@@ -106,8 +110,9 @@ class ErrorStateIns:
     # nis); replaceable per instance (navsim.estimators.filterpy_based hands it to filterpy).
     kalman_update = staticmethod(joseph_update)
 
-    def __init__(self, context, prior, noise: ImuNoise, *, interval_steps: int = 100, coning=None,
-                 sculling=None, position=None, estimate_biases: bool = True) -> None:
+    def __init__(self, context: Context, prior: Prior, noise: ImuNoise, *, interval_steps: int = 100,
+                 coning: str | None = None, sculling: str | None = None, position: str | None = None,
+                 estimate_biases: bool = True) -> None:
         if int(interval_steps) != interval_steps or interval_steps < 1:
             raise ConfigError("interval_steps", "a positive integer number of navigation steps", interval_steps)
         self.earth = context.earth
@@ -117,13 +122,18 @@ class ErrorStateIns:
         # every path) and the input layout found fit
         self._w = _compiled.work_array(self.earth, self.dt)
         self._in_w = False  # the state lives in the work array (the compiled path's last step)
-        self._row_kernel = None  # the compiled step_row once an input layout is found fit
+        self._row_kernel: Callable[..., int] | None = None  # the compiled step_row once a layout is found fit
         self._dummy = np.zeros((1, 3))  # the sub-sample arguments of a step without them
         self.noise = noise
         self.interval_steps = int(interval_steps)
         self.methods = dict(coning=coning, sculling=sculling, position=position)
-        self._resolved: dict = {}  # input shapes -> resolved (coning, sculling, position)
-        self._compiled_key = None  # the input shapes advance_row found fit for the compiled step
+        self._resolved: dict[tuple, Any] = {}  # input shapes -> resolved (coning, sculling, position)
+        self._compiled_key: tuple | None = None  # the input shapes advance_row found fit for the compiled step
+        self._state: InsState | None = None
+        self._flat: tuple | None = None  # the state as Python floats (see _floats), when built
+        self._pending: np.ndarray | None = None  # the covariance starting the next interval, when due
+        self._poly: np.ndarray | None = None
+        self._nav_block: np.ndarray | None = None
         self.estimate_biases = bool(estimate_biases)
         self.Qc = noise_density(noise)
         self.state = state_from_prior(prior)
@@ -237,7 +247,8 @@ class ErrorStateIns:
         return self._P0 if self._j == 0 else self._full_covariance(self._j)
 
     # -- propagation -------------------------------------------------------------------
-    def prepare(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> BodyTerms | StepTerms:
+    def prepare(self, dtheta_sub: Arr = None, dv_sub: Arr = None, dtheta_r: Arr = None,
+                dv_r: Arr = None) -> BodyTerms | StepTerms:
         """Raw (uncompensated) body-frame strapdown terms of n steps, for :meth:`advance_body`.
 
         One step with multiple integrals gives :class:`StepTerms` when the resolved methods
@@ -249,7 +260,8 @@ class ErrorStateIns:
                                      None if dv_sub is None else dv_sub[0], dtheta_r[0], dv_r[0])
         return body_terms(dtheta_sub, dv_sub, dtheta_r, dv_r, self.dt, **self.methods)
 
-    def prepare_step(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> BodyTerms | StepTerms:
+    def prepare_step(self, dtheta_sub: Arr, dv_sub: Arr, dtheta_r: np.ndarray, dv_r: np.ndarray
+                     ) -> BodyTerms | StepTerms:
         """:meth:`prepare` of one step from its (m, 3) / (R, 3) arrays (a
         :class:`~navsim.estimators.base.Measurement`'s fields)."""
         key = (None if dtheta_sub is None else dtheta_sub.shape, None if dv_sub is None else dv_sub.shape,
@@ -263,18 +275,20 @@ class ErrorStateIns:
                                     None if dtheta_sub is None else dtheta_sub.tolist(),
                                     None if dv_sub is None else dv_sub.tolist(), self.dt)
         if terms is None:
-            return body_terms(*(None if a is None else np.asarray(a)[None] for a in (dtheta_sub, dv_sub, dtheta_r, dv_r)),
-                              self.dt, **self.methods)
+            sub, dv_s = (None if a is None else np.asarray(a)[None] for a in (dtheta_sub, dv_sub))
+            return body_terms(sub, dv_s, np.asarray(dtheta_r)[None], np.asarray(dv_r)[None], self.dt, **self.methods)
         return StepTerms(*terms[:3], None, *terms[3:], self.dt)
 
-    def advance_step(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> tuple[np.ndarray, np.ndarray]:
+    def advance_step(self, dtheta_sub: Arr, dv_sub: Arr, dtheta_r: np.ndarray, dv_r: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
         """``advance_body(prepare_step(...))`` of one step from a
         :class:`~navsim.estimators.base.Measurement`'s arrays: rows (1, 9), covariance (1, 9, 9)
         (:meth:`advance_row` with a leading step axis)."""
         row, cov = self.advance_row(dtheta_sub, dv_sub, dtheta_r, dv_r)
         return row[None], cov[None]
 
-    def advance_row(self, dtheta_sub, dv_sub, dtheta_r, dv_r) -> tuple[np.ndarray, np.ndarray]:
+    def advance_row(self, dtheta_sub: Arr, dv_sub: Arr, dtheta_r: np.ndarray, dv_r: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
         """One navigation step from a :class:`~navsim.estimators.base.Measurement`'s arrays:
         the solution row (9,) and the navigation block (9, 9) of P at its end, both the
         caller's (fresh arrays).
@@ -332,7 +346,7 @@ class ErrorStateIns:
         if (methods is None or (dtheta_sub is None) != (dv_sub is None)
                 or tuple(methods) not in _one.ONE_STEP_METHODS or key[2][0] < 4 or key[3][0] < 4
                 or len(key[2]) != 2 or len(key[3]) != 2 or key[2][1] != 3 or key[3][1] != 3
-                or (key[0] is not None and (len(key[0]) != 2 or len(key[1]) != 2))
+                or (dtheta_sub is not None and dv_sub is not None and (dtheta_sub.ndim != 2 or dv_sub.ndim != 2))
                 or not _compiled.available()):
             rows, cov = self.advance_body(self.prepare_step(dtheta_sub, dv_sub, dtheta_r, dv_r))
             return rows[0], cov[0]
@@ -347,7 +361,8 @@ class ErrorStateIns:
         """Hook of subclasses whose own means follow the INS steps (called by the compiled
         one-step path; their ``advance_body`` calls it too)."""
 
-    def advance(self, dtheta_sub=None, dv_sub=None, dtheta_r=None, dv_r=None) -> tuple[np.ndarray, np.ndarray]:
+    def advance(self, dtheta_sub: Arr = None, dv_sub: Arr = None, dtheta_r: Arr = None,
+                dv_r: Arr = None) -> tuple[np.ndarray, np.ndarray]:
         """Process n navigation steps of IMU data (arrays as in :class:`MeasurementBatch`).
 
         Returns
@@ -359,7 +374,8 @@ class ErrorStateIns:
         """
         return self.advance_body(self.prepare(dtheta_sub, dv_sub, dtheta_r, dv_r))
 
-    def advance_body(self, body: BodyTerms, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def advance_body(self, body: BodyTerms | StepTerms, start: int = 0,
+                     stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`advance` over steps ``start:stop`` of precomputed :class:`BodyTerms`
         (compute them once per batch with :meth:`prepare`; the current bias estimates are
         applied here). A :class:`StepTerms` (one step) takes the float path of
@@ -519,7 +535,7 @@ class ErrorStateIns:
                              st.velocity_n[None], st.quat_nb[None])[0]
 
 
-def body_velocity_terms(mat_nb, velocity_n) -> tuple[np.ndarray, np.ndarray]:
+def body_velocity_terms(mat_nb: ArrayLike, velocity_n: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Body-frame velocity ``v_b = C^T v_n`` and its partials over the error state.
 
     From ``C_est = (I + [psi x]) C`` and ``v_est = v + dv``::
@@ -558,7 +574,7 @@ class AuxBlocksIns(ErrorStateIns):
     interval in ``_carry_means``.
     """
 
-    def _init_aux(self, variances) -> None:
+    def _init_aux(self, variances: np.ndarray | list[float]) -> None:
         """Set up ``n_aux`` states with the given initial variances (before ``super().__init__``)."""
         self.n_aux = len(variances)
         self.n_states = N_STATES + self.n_aux
@@ -644,7 +660,8 @@ class AuxStateIns(AuxBlocksIns):
         and the feedback subtracts the estimated error.
     """
 
-    def __init__(self, context, prior, noise: ImuNoise, *, aux_variance, aux_psd, aux_tau_s=None, **kw):
+    def __init__(self, context: Context, prior: Prior, noise: ImuNoise, *, aux_variance: ArrayLike,
+                 aux_psd: ArrayLike, aux_tau_s: ArrayLike | None = None, **kw: Any) -> None:
         var = np.asarray(aux_variance, dtype=float).reshape(-1)
         self.aux_psd = np.asarray(aux_psd, dtype=float).reshape(-1)
         if len(self.aux_psd) != len(var):
