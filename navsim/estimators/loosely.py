@@ -572,8 +572,6 @@ class LooselyCoupledEkf(NoiseScalable):
         eng = self.engine
         if eng is None:
             raise ConfigError("LooselyCoupledEkf", "reset(context, prior) before stepping", "no reset")
-        odo = getattr(m, "odometer_ds_m", None)
-        baro = getattr(m, "baro_alt_m", None)
         if self._ins_only_step(m):
             row, cov = self._ins_step(m, eng)
             lat, lon, h, ve, vn, vu, heading, pitch, roll = row.tolist()
@@ -581,11 +579,7 @@ class LooselyCoupledEkf(NoiseScalable):
                             extra=self._ins_extra(eng))
         if self._epoch_only(m):
             return self._epoch_step(m)
-        gnss = ((0, m.gnss),) if m.gnss is not None else ()
-        out = self.step_batch(MeasurementBatch(
-            np.array([m.step]), np.array([m.t]), m.dt, m.dtheta_r[None], m.dv_r[None],
-            m.dtheta_sub[None], m.dv_sub[None], gnss, None if odo is None else np.array([odo]),
-            None if baro is None else np.array([baro])))
+        out = self.step_batch(MeasurementBatch.of(m))
         row = out.solution[0]
         extra = self._ins_extra(eng)
         if self._baro is not None:

@@ -169,9 +169,10 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Generic, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Callable, Generic, TypeVar, cast, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..earth import mat_en
 from ..errors import ConfigError
@@ -183,17 +184,22 @@ from ..option_checks import (
     check_time_constant,
 )
 from ..rotations import quat_to_mat
-from ._inserror import BG, AuxBlocksIns, ImuNoise, joseph_update, lever_arm_terms
+from ._inserror import BG, AuxBlocksIns, BodyTerms, ImuNoise, StepTerms, joseph_update, lever_arm_terms
 from .base import (
     Context,
     Estimate,
     EstimateBatch,
+    GnssObservation,
     Measurement,
     MeasurementBatch,
     NoiseScalable,
+    Prior,
     StepRow,
     row_of,
 )
+
+if TYPE_CHECKING:  # type hints only
+    from ..earth import EarthModel
 
 __all__ = [
     "TightlyCoupledEkf",
@@ -213,6 +219,7 @@ __all__ = [
 
 CB, CD = 15, 16
 T = TypeVar("T")
+Num = float | np.ndarray  # a scalar or an array of them (the vectorised functions take both)
 
 TINY_CLOCK_BIAS_M = 1e-3
 TINY_CLOCK_DRIFT_MPS = 1e-4
@@ -221,8 +228,10 @@ SIGMA_FLOOR_RATE_MPS = 1e-4
 
 
 # ============================================================================ observables
-def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_pos_e, sat_vel_e, earth, *,
-                        arm_n=None, arm_velocity_n=None):
+def predict_observables(lat: Num, lon: Num, h: Num, velocity_n: ArrayLike, clock_bias: Num, clock_drift: Num,
+                        sat_pos_e: np.ndarray, sat_vel_e: np.ndarray, earth: EarthModel, *,
+                        arm_n: ArrayLike | None = None,
+                        arm_velocity_n: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pseudoranges (TC.2) and pseudorange rates (TC.3) of m satellites.
 
     Parameters
@@ -254,13 +263,14 @@ def predict_observables(lat, lon, h, velocity_n, clock_bias, clock_drift, sat_po
     return rho + np.asarray(clock_bias)[..., None], rate + np.asarray(clock_drift)[..., None]
 
 
-def _antenna(r_e, c_en, velocity_n, arm_n, arm_velocity_n):
+def _antenna(r_e: np.ndarray, c_en: np.ndarray, velocity_n: ArrayLike, arm_n: ArrayLike,
+             arm_velocity_n: ArrayLike | None) -> tuple[np.ndarray, np.ndarray]:
     """Antenna ECEF position and ENU velocity from the INS ones (TC.8)."""
     arm_e = np.einsum("...ji,...j->...i", c_en, np.asarray(arm_n, dtype=float))  # C_en^T arm_n
     return r_e + arm_e, np.asarray(velocity_n, dtype=float) + np.asarray(arm_velocity_n, dtype=float)
 
 
-def _rotate_back(psi, vec):
+def _rotate_back(psi: np.ndarray, vec: np.ndarray) -> np.ndarray:
     """exp(-[psi x]) vec, row-wise for (N, 3) arrays (Rodrigues)."""
     theta2 = np.einsum("ni,ni->n", psi, psi)
     theta = np.sqrt(theta2)
@@ -272,7 +282,8 @@ def _rotate_back(psi, vec):
     return vec - a[:, None] * c1 + b[:, None] * np.cross(psi, c1)
 
 
-def _ranges(r_e, c_en, velocity_n, sat_pos_e, sat_vel_e):
+def _ranges(r_e: np.ndarray, c_en: np.ndarray, velocity_n: ArrayLike, sat_pos_e: np.ndarray,
+            sat_vel_e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lines of sight (..., m, 3), geometric ranges and range rates (..., m): (TC.2), (TC.3)."""
     v_e = np.einsum("...ji,...j->...i", c_en, np.asarray(velocity_n, dtype=float))  # C_en^T v_n
     los = sat_pos_e - r_e[..., None, :]
@@ -282,8 +293,9 @@ def _ranges(r_e, c_en, velocity_n, sat_pos_e, sat_vel_e):
     return los, rho, rate
 
 
-def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e, sat_vel_e, earth,
-                         n_states: int = 17, *, lever=None) -> np.ndarray:
+def observation_jacobian(lat: float, lon: float, h: float, velocity_n: ArrayLike, sat_pos_e: np.ndarray,
+                         sat_vel_e: np.ndarray, earth: EarthModel, n_states: int = 17, *,
+                         lever: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """d[rho; rate]/dx (2m, n_states) at the estimate: (TC.4), x = estimate error.
 
     Columns: position (metres along E, N, U), velocity, then zeros for attitude and
@@ -332,7 +344,8 @@ def observation_jacobian(lat: float, lon: float, h: float, velocity_n, sat_pos_e
 
 
 # ============================================================================ atmosphere
-def ionosphere_obliquity(elevation, shell_height_m: float = 350_000.0, earth_radius_m: float = 6_378_137.0):
+def ionosphere_obliquity(elevation: Num, shell_height_m: float = 350_000.0,
+                         earth_radius_m: float = 6_378_137.0) -> np.ndarray:
     """Thin-shell ionospheric obliquity factor F(E) = 1 / sqrt(1 - (R cos E / (R + h_I))^2) (TC.6).
 
     Parameters
@@ -348,7 +361,7 @@ def ionosphere_obliquity(elevation, shell_height_m: float = 350_000.0, earth_rad
     return 1.0 / np.sqrt(1.0 - (k * c) ** 2)
 
 
-def troposphere_mapping(elevation):
+def troposphere_mapping(elevation: Num) -> np.ndarray:
     """RTCA DO-229D tropospheric mapping m(E) = 1.001 / sqrt(0.002001 + sin^2 E) (TC.6).
 
     ``elevation`` in rad; m(90 deg) = 1.001/sqrt(1.002001) = 1 to 1e-9.
@@ -357,12 +370,12 @@ def troposphere_mapping(elevation):
     return 1.001 / np.sqrt(0.002001 + s * s)
 
 
-def _sin_elevation(los, rho, c_en):
+def _sin_elevation(los: np.ndarray, rho: np.ndarray, c_en: np.ndarray) -> np.ndarray:
     """sin E = u . up (geodetic vertical, row U of C_en), (..., m)."""
     return np.einsum("...mi,...i->...m", los, c_en[..., 2, :]) / rho
 
 
-def slant_maps(s, k, h, scale_height_m):
+def slant_maps(s: np.ndarray, k: float, h: Num, scale_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """F, m and the tropospheric height factor exp(-h / H_T) from s = sin E (TC.6): the thin-shell
     ionospheric obliquity with k = a / (a + shell height), the RTCA DO-229D mapping m(E)."""
     F = 1.0 / np.sqrt(1.0 - k * k * (1.0 - s * s))
@@ -370,7 +383,8 @@ def slant_maps(s, k, h, scale_height_m):
     return F, m, np.exp(-np.asarray(h, dtype=float) / scale_height_m)
 
 
-def _slant(s, h, ionosphere_zenith_m, troposphere_zenith_m, k, scale_height_m):
+def _slant(s: np.ndarray, h: Num, ionosphere_zenith_m: Num, troposphere_zenith_m: Num, k: float,
+           scale_height_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Slant delays (TC.6) from s = sin E; zenith delays scalar or (N,)."""
     F, m, height = slant_maps(s, k, h, scale_height_m)
     iono = np.asarray(ionosphere_zenith_m, dtype=float)[..., None] * F
@@ -378,8 +392,9 @@ def _slant(s, h, ionosphere_zenith_m, troposphere_zenith_m, k, scale_height_m):
     return iono, tropo
 
 
-def _slant_partials(s, los, rho, c_en, lat, h, ionosphere_zenith_m, troposphere_zenith_m, earth, k,
-                    scale_height_m, vertical_tilt: bool = True) -> np.ndarray:
+def _slant_partials(s: np.ndarray, los: np.ndarray, rho: np.ndarray, c_en: np.ndarray, lat: Num, h: Num,
+                    ionosphere_zenith_m: Num, troposphere_zenith_m: Num, earth: EarthModel, k: float,
+                    scale_height_m: float, vertical_tilt: bool = True) -> np.ndarray:
     """(m, 5) partials of I + T (TC.7) at one position; see :func:`atmosphere_jacobian`.
 
     ``vertical_tilt=False`` leaves out the tilt of the local vertical: the partials for
@@ -403,8 +418,9 @@ def _slant_partials(s, los, rho, c_en, lat, h, ionosphere_zenith_m, troposphere_
     return J
 
 
-def atmosphere_delays(lat, lon, h, sat_pos_e, ionosphere_zenith_m, troposphere_zenith_m, earth, *,
-                      shell_height_m: float = 350_000.0, scale_height_m: float = 8_000.0):
+def atmosphere_delays(lat: Num, lon: Num, h: Num, sat_pos_e: np.ndarray, ionosphere_zenith_m: Num,
+                      troposphere_zenith_m: Num, earth: EarthModel, *, shell_height_m: float = 350_000.0,
+                      scale_height_m: float = 8_000.0) -> tuple[np.ndarray, np.ndarray]:
     """Slant ionospheric and tropospheric code delays (TC.6) of m satellites.
 
     Parameters
@@ -431,8 +447,8 @@ def atmosphere_delays(lat, lon, h, sat_pos_e, ionosphere_zenith_m, troposphere_z
     return _slant(_sin_elevation(los, rho, c_en), h, ionosphere_zenith_m, troposphere_zenith_m, k, scale_height_m)
 
 
-def atmosphere_jacobian(lat: float, lon: float, h: float, sat_pos_e, ionosphere_zenith_m: float,
-                        troposphere_zenith_m: float, earth, *, shell_height_m: float = 350_000.0,
+def atmosphere_jacobian(lat: float, lon: float, h: float, sat_pos_e: np.ndarray, ionosphere_zenith_m: float,
+                        troposphere_zenith_m: float, earth: EarthModel, *, shell_height_m: float = 350_000.0,
                         scale_height_m: float = 8_000.0) -> np.ndarray:
     """Partial derivatives (m, 5) of the total slant delay I + T (TC.7).
 
@@ -479,7 +495,8 @@ def guarded_cholesky(A: np.ndarray) -> tuple[np.ndarray, int]:
     return L, fallbacks
 
 
-def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Scaled symmetric sigma points (2n+1, n) with weights, and a fallback count.
 
     The square root is the Cholesky factor of ``(n + lambda) P`` restricted to the states
@@ -505,7 +522,9 @@ def sigma_points(mean: np.ndarray, P: np.ndarray, alpha: float = 1.0, beta: floa
     return X, Wm, Wc, fallbacks
 
 
-def unscented_update(mean, P, hx, z, R, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+def unscented_update(mean: np.ndarray, P: np.ndarray, hx: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
+                     R: np.ndarray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0
+                     ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """Unscented measurement update.
 
     Parameters
@@ -533,7 +552,9 @@ def unscented_update(mean, P, hx, z, R, alpha: float = 1.0, beta: float = 2.0, k
     return mean + K @ y, 0.5 * (P_new + P_new.T), float(w @ w), fallbacks
 
 
-def unscented_predict(mean, P, fx, Q, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+def unscented_predict(mean: np.ndarray, P: np.ndarray, fx: Callable[[np.ndarray], np.ndarray], Q: np.ndarray,
+                      alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0
+                      ) -> tuple[np.ndarray, np.ndarray, int]:
     """Unscented time update: sigma points through ``fx`` ((N, n) -> (N, n)) plus Q.
 
     Returns mean (n,), P (n, n), fallbacks. (The tightly coupled UKF does not need it,
@@ -548,7 +569,7 @@ def unscented_predict(mean, P, fx, Q, alpha: float = 1.0, beta: float = 2.0, kap
 
 
 # ============================================================================ the engine
-def _clock_transition(tau: float, psd) -> tuple[np.ndarray, np.ndarray]:
+def _clock_transition(tau: float, psd: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Phi and Qd of the two-state clock (TC.1) over tau (Brown & Hwang 9.3)."""
     s_f, s_g = psd
     phi = np.array([[1.0, tau], [0.0, 1.0]])
@@ -600,8 +621,10 @@ class _ClockEngine(AuxBlocksIns):
     ``(sigma_m, tau_s)`` of the Gauss-Markov altimeter bias (TC.10), its state last.
     """
 
-    def __init__(self, context, prior, noise: ImuNoise, *, clock_sigma, clock_psd, with_clock: bool,
-                 atmosphere=None, baro=None, **kw):
+    def __init__(self, context: Context, prior: Prior, noise: ImuNoise, *, clock_sigma: tuple[float, float],
+                 clock_psd: tuple[float, float], with_clock: bool,
+                 atmosphere: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None,
+                 baro: tuple[float, float] | None = None, **kw: Any) -> None:
         self._means_due = False  # the means of _after_steps, computed when read
         self.with_clock = bool(with_clock)
         self.with_atmosphere = atmosphere is not None
@@ -612,14 +635,14 @@ class _ClockEngine(AuxBlocksIns):
         self.clock = np.zeros(2)
         self._clock_psd = clock_psd
         variances = [clock_sigma[0] ** 2, clock_sigma[1] ** 2] if self.with_clock else []
-        if self.with_atmosphere:
+        if atmosphere is not None:
             apriori, sigma, tau = (np.asarray(a, dtype=float) for a in atmosphere)
             self.atm_apriori = apriori.copy()
             self.atm = apriori.copy()  # estimated zenith delays [I_z, T_z], m
             self._atm_var = sigma**2
             self._atm_tau = tau
             variances += list(self._atm_var)
-        if self.with_baro:
+        if baro is not None:
             self._baro_var, self._baro_tau = float(baro[0]) ** 2, float(baro[1])
             variances.append(self._baro_var)
         self._init_aux(variances)
@@ -667,7 +690,8 @@ class _ClockEngine(AuxBlocksIns):
         if self.with_baro:
             self._baro_at_update = self.baro_bias
 
-    def advance_body(self, body, start: int = 0, stop: int | None = None):
+    def advance_body(self, body: BodyTerms | StepTerms, start: int = 0,
+                     stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The INS steps, then the clock (TC.1) and atmosphere (TC.5) means.
 
         The means are propagated from the last update by the total number of steps
@@ -752,7 +776,7 @@ class TightlyCoupledOptions:
     accel_scale_sigma: float = 0.0
     scale_tau_s: float = 5.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         ImuNoise(gyro_scale_sigma=self.gyro_scale_sigma, accel_scale_sigma=self.accel_scale_sigma,
                  scale_tau_s=self.scale_tau_s)  # checks them
         check_auto_none("tightly.baro", self.baro)
@@ -781,11 +805,11 @@ class _TightlyCoupled(NoiseScalable):
 
     kind = "ekf"
 
-    def __init__(self, **options):
+    def __init__(self, **options: Any) -> None:
         self.options = TightlyCoupledOptions(**options)
         self.engine: _ClockEngine | None = None
 
-    def reset(self, context: Context, prior) -> None:
+    def reset(self, context: Context, prior: Prior) -> None:
         """Start from the prior (9 x 9 navigation covariance, nominal bias sigmas, clock)."""
         opt = self.options
         self.context = context
@@ -813,9 +837,9 @@ class _TightlyCoupled(NoiseScalable):
         self._baro = spec if opt.baro == "auto" and self.kind == "ekf" else None
         baro = None
         if self._baro is not None:
-            baro = (spec.bias_sigma_m, spec.bias_tau_s)
+            baro = (self._baro.bias_sigma_m, self._baro.bias_tau_s)
             self._baro_steps = max(1, round(opt.baro_period_s / context.nav_period_s))
-            self._baro_var = max(spec.noise_sigma_m**2 + spec.resolution_m**2 / 12.0, 1e-12)
+            self._baro_var = max(self._baro.noise_sigma_m**2 + self._baro.resolution_m**2 / 12.0, 1e-12)
         self.engine = _ClockEngine(context, prior, noise, clock_sigma=clock_sigma, clock_psd=clock_psd,
                                    with_clock=opt.clock == "auto", atmosphere=atmosphere, baro=baro,
                                    interval_steps=steps,
@@ -850,8 +874,15 @@ class _TightlyCoupled(NoiseScalable):
     def last_extra(self, value: dict) -> None:
         self._last_extra = value
 
+    def _engine(self) -> _ClockEngine:
+        """The engine of the episode (made by :meth:`reset`)."""
+        eng = self.engine
+        if eng is None:
+            raise ConfigError(type(self).__name__, "reset(context, prior) before stepping", "no reset")
+        return eng
+
     # ------------------------------------------------------------------ update
-    def _measurements(self, obs):
+    def _measurements(self, obs: GnssObservation) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         use = np.asarray(obs.valid, dtype=bool) & np.isfinite(obs.pseudorange_m) & np.isfinite(obs.pseudorange_rate_mps)
         sat_pos, sat_vel = obs.sat_pos_e[use], obs.sat_vel_e[use]
         m = int(use.sum())
@@ -862,12 +893,12 @@ class _TightlyCoupled(NoiseScalable):
             R = np.concatenate([R, np.full(m, self.sigma_rate**2)])
         return m, sat_pos, sat_vel, z, R
 
-    def _update(self, obs) -> tuple[float | None, int]:
+    def _update(self, obs: GnssObservation) -> tuple[float | None, int]:
         m, sat_pos, sat_vel, z, R = self._measurements(obs)
         self.n_used = m
         if m == 0:
             return None, 0
-        P = self.engine.full_covariance()
+        P = self._engine().full_covariance()
         nis = self._apply(lambda: self._kalman(P, sat_pos, sat_vel, z, R, m))
         if nis is None:
             return None, 0
@@ -877,24 +908,28 @@ class _TightlyCoupled(NoiseScalable):
             self.diverged = True
         return nis, dof
 
-    def _predicted(self, sat_pos, sat_vel, lever=None):
-        st, eng = self.engine.state, self.engine
+    def _predicted(self, sat_pos: np.ndarray, sat_vel: np.ndarray,
+                   lever: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        eng = self._engine()
+        st = eng.state
         cb, cd = (eng.clock if eng.with_clock else (0.0, 0.0))
         if lever is not None:
             return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth,
                                        arm_n=lever[0], arm_velocity_n=lever[1])
         return predict_observables(st.lat, st.lon, st.h, st.velocity_n, cb, cd, sat_pos, sat_vel, self.earth)
 
-    def _lever_terms(self):
+    def _lever_terms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """(arm_n, arm_velocity_n, L) of the current INS state (TC.8), or None."""
         if not self._with_lever:
             return None
-        st = self.engine.state
+        st = self._engine().state
         return lever_arm_terms(quat_to_mat(st.quat_nb), self._omega_ib_b, self.lever_arm_b,
                                self.earth.earth_rate_n(st.lat))
 
-    def _with_atmosphere(self, lat, lon, h, velocity_n, cb, cd, iono_zenith, tropo_zenith, sat_pos, sat_vel,
-                         partials: bool = False, arm_n=None, arm_velocity_n=None):
+    def _with_atmosphere(self, lat: Num, lon: Num, h: Num, velocity_n: ArrayLike, cb: Num, cd: Num, iono_zenith: Num,
+                         tropo_zenith: Num, sat_pos: np.ndarray, sat_vel: np.ndarray, partials: bool = False,
+                         arm_n: ArrayLike | None = None, arm_velocity_n: ArrayLike | None = None
+                         ) -> tuple[np.ndarray, ...]:
         """(TC.2), (TC.3) plus the slant delays (TC.6) on one geometry (one ECEF position and
         C_en per hypothesis); with ``partials`` (one position) also (TC.7), (m, 5). With
         ``arm_n`` the geometry is the antenna's (TC.8), its height ``h + arm_U``, and the
@@ -919,12 +954,13 @@ class _TightlyCoupled(NoiseScalable):
                                     self._scale_height_m, vertical_tilt=False)[:, 0:3]
         return rho_pr, rate, J, J_antenna
 
-    def _kalman(self, P, sat_pos, sat_vel, z, R, m):  # pragma: no cover - subclasses
+    def _kalman(self, P: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarray, z: np.ndarray, R: np.ndarray,
+                m: int) -> tuple[np.ndarray, np.ndarray, float]:  # pragma: no cover - subclasses
         raise NotImplementedError
 
     # ------------------------------------------------------------------ stepping
     def _extra(self) -> dict:
-        eng = self.engine
+        eng = self._engine()
         extra = {"gyro_bias": eng.gyro_bias.copy(), "accel_bias": eng.accel_bias.copy(), "n_used": self.n_used,
                  "diverged": bool(self.diverged or eng.diverged), "cholesky_fallbacks": self.cholesky_fallbacks}
         if eng.with_clock:
@@ -937,7 +973,7 @@ class _TightlyCoupled(NoiseScalable):
 
     def _baro_update(self, altitude_m: float) -> tuple[float | None, int]:
         """(TC.10) at the current step: ``y = h_ins - z + b_est = dU + db - v``, ``H = [e_U | e_b]``."""
-        eng = self.engine
+        eng = self._engine()
         if not math.isfinite(altitude_m):
             return None, 0
         P = eng.full_covariance()
@@ -947,7 +983,7 @@ class _TightlyCoupled(NoiseScalable):
         nis = self._apply(lambda: joseph_update(P, H, np.array([[self._baro_var]]), y))
         return (None, 0) if nis is None else (float(nis), 1)
 
-    def _apply(self, update) -> float | None:
+    def _apply(self, update: Callable[[], tuple[np.ndarray, np.ndarray, float]]) -> float | None:
         """Make ``update() -> (dx, P_new, nis)`` and feed it back (:meth:`_ClockEngine.apply`);
         None, with the divergence flag set, when it fails or is not finite."""
         try:
@@ -958,7 +994,7 @@ class _TightlyCoupled(NoiseScalable):
         if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(P_new))):
             self.diverged = True
             return None
-        self.engine.apply(dx, P_new)
+        self._engine().apply(dx, P_new)
         return nis
 
     def step_row(self, measurement: Measurement) -> StepRow:
@@ -996,24 +1032,21 @@ class _TightlyCoupled(NoiseScalable):
         if m.gnss is not None and self.engine is not None and not self._with_lever and (
                 self._baro is None or baro is None or (m.step + 1) % self._baro_steps != 0):
             return self._epoch_step(m)
-        out = self.step_batch(MeasurementBatch(
-            np.array([m.step]), np.array([m.t]), m.dt, np.asarray(m.dtheta_r)[None], np.asarray(m.dv_r)[None],
-            np.asarray(m.dtheta_sub)[None], np.asarray(m.dv_sub)[None], ((0, m.gnss),) if m.gnss is not None else (),
-            baro_alt_m=None if baro is None else np.array([baro])))
+        out = self.step_batch(MeasurementBatch.of(m))
         row = out.solution[0]
         nis = None if np.isnan(out.nis[0]) else float(out.nis[0])
         return Estimate(m.t, row[0], row[1], row[2], row[3:6].copy(), row[6], row[7], row[8],
-                        covariance=out.covariance[0], nis=nis, nis_dof=int(out.nis_dof[0]) if nis is not None else None,
-                        extra=self.last_extra)
+                        covariance=None if out.covariance is None else out.covariance[0], nis=nis,
+                        nis_dof=int(out.nis_dof[0]) if nis is not None else None, extra=self.last_extra)
 
     def _epoch_row(self, m: Measurement) -> StepRow:
         """The :data:`StepRow` of a GNSS epoch without barometer update or lever arm: the
         operations of :meth:`step_batch` on a batch of one (the INS step, the update), with
         the INS step on the engine's one-step path (:meth:`ErrorStateIns.advance_step`, the
         same numbers) and no batch built."""
-        eng = self.engine
+        eng = self._engine()
         rows, c = eng.advance_step(m.dtheta_sub, m.dv_sub, m.dtheta_r, m.dv_r)
-        value, d = self._update(m.gnss)
+        value, d = self._update(cast(GnssObservation, m.gnss))  # an epoch
         nis = nis_dof = None
         if value is not None:
             row = eng.current_row()
@@ -1066,7 +1099,7 @@ class _TightlyCoupled(NoiseScalable):
                     nis[end], dof[end] = value, d
                     sol[end] = self.engine.current_row()
                     cov[end] = self.engine.covariance[:9, :9]
-            if end in baro_due:
+            if end in baro_due and baro_alt is not None:
                 value, d = self._baro_update(float(baro_alt[end]))
                 if value is not None:
                     nis[end], dof[end] = (nis[end] + value, dof[end] + d) if dof[end] else (value, d)
@@ -1129,21 +1162,23 @@ class TightlyCoupledEkf(_TightlyCoupled):
     # (P, H, R, innovation) -> (dx, P_new, nis); navsim.estimators.filterpy_based replaces it
     kalman_update = staticmethod(joseph_update)
 
-    def _kalman(self, P, sat_pos, sat_vel, z, R, m):
+    def _kalman(self, P: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarray, z: np.ndarray, R: np.ndarray,
+                m: int) -> tuple[np.ndarray, np.ndarray, float]:
         h, J = self.observation_model(sat_pos, sat_vel)
         if J.shape[1] < P.shape[0]:  # the altimeter-bias column (TC.10): no GNSS partial
             J = np.concatenate([J, np.zeros((J.shape[0], P.shape[0] - J.shape[1]))], axis=1)
         # y = z - h(INS) = -J x + v: H = -J          (003 eqs. (2), (3) linearised)
         return self.kalman_update(P, -J, np.diag(R), z - h)
 
-    def observation_model(self, sat_pos, sat_vel) -> tuple[np.ndarray, np.ndarray]:
+    def observation_model(self, sat_pos: np.ndarray, sat_vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted observables h (2m,; m without Doppler) and J = dh/dx at the estimate.
 
         (TC.2)-(TC.4), with the atmosphere (TC.6)-(TC.7) and the lever arm (TC.8)-(TC.9)
         when they are on; ``sat_pos``, ``sat_vel`` (m, 3) of the channels used.
         """
         m = len(sat_pos)
-        st, eng = self.engine.state, self.engine
+        eng = self._engine()
+        st = eng.state
         lever = self._lever_terms()
         J = observation_jacobian(st.lat, st.lon, st.h, st.velocity_n, sat_pos, sat_vel, self.earth,
                                  eng.atm_index, lever=lever)
@@ -1180,8 +1215,10 @@ class TightlyCoupledUkf(_TightlyCoupled):
     # navsim.estimators.filterpy_based replaces it
     unscented_update = staticmethod(unscented_update)
 
-    def _kalman(self, P, sat_pos, sat_vel, z, R, m):
-        st, eng = self.engine.state, self.engine
+    def _kalman(self, P: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarray, z: np.ndarray, R: np.ndarray,
+                m: int) -> tuple[np.ndarray, np.ndarray, float]:
+        eng = self._engine()
+        st = eng.state
         earth = self.earth
         r_n, r_e = (float(x) for x in earth.radii(st.lat))
         clock = eng.clock if eng.with_clock else np.zeros(2)
@@ -1193,7 +1230,7 @@ class TightlyCoupledUkf(_TightlyCoupled):
             arm_est = C @ self.lever_arm_b
             w, l = self._omega_ib_b, self.lever_arm_b
 
-        def hx(X):
+        def hx(X: np.ndarray) -> np.ndarray:
             # the truth hypothesis of each sigma point: INS minus the error
             lat = st.lat - X[:, 1] / (r_n + st.h)
             lon = st.lon - X[:, 0] / ((r_e + st.h) * cos_lat)
