@@ -23,7 +23,7 @@ References: [003] eqs. (14), (16).
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -54,7 +54,8 @@ class CompiledEngine(PythonEngine):
         """The propagation engine in use after :meth:`reset`: "compiled" or "python"."""
         return "compiled" if getattr(self, "_kargs", None) is not None else "python"
 
-    def _propagate(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
+    def _propagate(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarray,
+                   epochs: dict[int, Any], steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         if self._kargs is None:
             return self._run(t_end, inp, dtheta_r, dv_r, epochs, steps)
         return self._run_compiled(t_end, inp, dtheta_r, dv_r, epochs, steps)
@@ -73,9 +74,9 @@ class CompiledEngine(PythonEngine):
         ic[k.I_OBSERVER] = self._observer
         ic[k.I_SPHERE], ic[k.I_PRINTED], ic[k.I_BIASES], ic[k.I_CLOCK] = (
             self._sphere, self._printed_kin, self._biases, self._clock)
-        ic[k.I_IA] = -1 if self._i_ba is None else self._i_ba
-        ic[k.I_IG] = -1 if self._i_bg is None else self._i_bg
-        ic[k.I_ICLK] = -1 if self._i_clk is None else self._i_clk
+        ic[k.I_IA] = self._i_ba
+        ic[k.I_IG] = self._i_bg
+        ic[k.I_ICLK] = self._i_clk
         ic[k.I_SPE], ic[k.I_NC], ic[k.I_SINGLE], ic[k.I_ORDER], ic[k.I_HALL] = (
             self._spe, self._n_c, tf.single, tf.order, self._h_all)
         bar_idx = np.array([i for i, _ in self._bar_fix], dtype=np.int64)
@@ -116,7 +117,7 @@ class CompiledEngine(PythonEngine):
         if kargs is not None:
             kargs[0][_kernel.C_QA] = value
 
-    def _k_arrays(self):
+    def _k_arrays(self) -> tuple[np.ndarray, ...]:
         """The compiled engine's state: (flat [Y, K, P, P_start], cov counters, Y, K, P, P_start
         views), loaded from the reference engine's attributes when those hold the state."""
         st = self._kstate
@@ -128,7 +129,7 @@ class CompiledEngine(PythonEngine):
             P = flat[2 * ns:2 * ns + ns * ns].reshape(ns, ns)
             P_start = flat[2 * ns + ns * ns:].reshape(ns, ns)
             Y[:] = self._Y
-            K[:] = 0.0 if self._K is None else self._K
+            K[:] = self._K
             P[:] = self._P
             P_start[:] = self._P_start
             cov = np.empty(3, dtype=np.int64) if pk is None else pk[3]
@@ -155,7 +156,8 @@ class CompiledEngine(PythonEngine):
             self._kstate = None
             self._krow = None
 
-    def _run_compiled(self, t_end, inp, dtheta_r, dv_r, epochs: dict, steps):
+    def _run_compiled(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarray,
+                      epochs: dict[int, Any], steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`_run` with the runs of steps between epochs advanced by the compiled engine.
 
         The steps it hands back (start-up sub-steps, failures, epoch updates) are done here
@@ -172,10 +174,12 @@ class CompiledEngine(PythonEngine):
         inp = np.ascontiguousarray(inp, dtype=float)
         steps = np.ascontiguousarray(steps, dtype=np.int64)
         advance = _kernel.advance
+        kargs = self._kargs
+        assert kargs is not None  # the compiled engine is in use
         i = 0
         while i < n and not self._diverged:
             _, cov, Y, K, P, P_start = self._k_arrays()
-            i, status = advance(i, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, *self._kargs, out_y, out_p,
+            i, status = advance(i, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, *kargs, out_y, out_p,
                                 self._kwork)
             if status == _kernel.STATUS_DONE:
                 break
@@ -185,7 +189,7 @@ class CompiledEngine(PythonEngine):
             i += 1
         return out_y, out_p, nis, dof
 
-    def _outputs(self, y, p, t):
+    def _outputs(self, y: np.ndarray, p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`outputs`, by the compiled engine when it is in use (the same expressions)."""
         if self._kargs is None:
             return self.outputs(y, p, t)
@@ -205,6 +209,7 @@ class CompiledEngine(PythonEngine):
         if krow is None:  # the state into the packed buffers (views of kernel.pack)
             self._k_arrays()
             krow = self._krow
+            assert krow is not None  # set by _k_arrays with the compiled engine's buffers
         step, fbuf, ibuf = krow
         sol = np.empty(9)
         cov9 = np.empty((9, 9))
@@ -226,10 +231,12 @@ class CompiledEngine(PythonEngine):
         if krow is None:
             self._k_arrays()
             krow = self._krow
+            assert krow is not None  # set by _k_arrays with the compiled engine's buffers
         step, fbuf, ibuf = krow
         dtheta_r = np.ascontiguousarray(measurement.dtheta_r, dtype=float)
+        dv_r = np.ascontiguousarray(measurement.dv_r, dtype=float)
         t = float(measurement.t)
-        status = step(dtheta_r, np.ascontiguousarray(measurement.dv_r, dtype=float), t, int(measurement.step),
+        status = step(dtheta_r, dv_r, t, int(measurement.step),
                       True, fbuf, ibuf, np.empty(9), np.empty((9, 9)))
         if status != _kernel.STATUS_EPOCH:
             return None
@@ -241,19 +248,20 @@ class CompiledEngine(PythonEngine):
         out_p = np.full((1, ns, ns), np.nan)
         nis = np.full(1, np.nan)
         dof = np.zeros(1, dtype=int)
-        self._reference_step(0, row, t, int(measurement.step), dtheta_r[None], None, measurement.gnss, False,
+        self._reference_step(0, row, t, int(measurement.step), dtheta_r[None], dv_r[None], measurement.gnss, False,
                              out_y, out_p, nis, dof)
         sol, cov = self._outputs(out_y, out_p, np.array([t]))
         return (sol[0], cov[0], None if math.isnan(nis[0]) else float(nis[0]),
                 None if dof[0] == 0 else int(dof[0]))
 
-    def _step_compiled(self, measurement: Measurement):
+    def _step_compiled(self, measurement: Measurement) -> Estimate | None:
         """:meth:`_row_compiled` as an :class:`Estimate` (None: the general path)."""
         done = self._row_compiled(measurement)
         if done is None:
             return None
         sol, cov9 = done
         st = self._kstate
+        assert st is not None  # the compiled step left the state in the buffers
         y = st[2].copy()
         extra = {"state": y, "state_cov": st[4].copy(), "diverged": False}
         if self.n_states > 5:

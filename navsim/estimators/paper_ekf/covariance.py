@@ -29,6 +29,7 @@ and Applied Kalman Filtering, 4th ed., 2012, sec. 8.2.
 from __future__ import annotations
 
 import operator
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -50,7 +51,9 @@ class Covariance(Mechanization):
     _Z: np.ndarray
     _work: tuple[np.ndarray, ...]
 
-    def _coefficients(self, Y, w, f, t):
+    def _coefficients(self, Y: Sequence[float], w: Sequence[float] | np.ndarray, f: Sequence[float] | np.ndarray,
+                      t: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, tuple[Any, ...]]:
         """The coefficients of (14) at (Y, inputs) as dense arrays, for the checks.
 
         Returns (A (n, n), hneg (n,), Q (n, n), s (n,), sig2, first): A = dF/dY, ``hneg`` =
@@ -124,7 +127,7 @@ class Covariance(Mechanization):
         m = np.zeros((4, n, n))
         self._work = (self._Z, self._Z[:n], self._Z.T, np.zeros((2 * n, n)), m[0], m[1], m[2], m[3])
 
-    def _h_matrix(self, a_dyn, hneg, q_dyn, s4, sig2) -> np.ndarray:
+    def _h_matrix(self, a_dyn: list[float], hneg: list[float], q_dyn: list[float], s4: float, sig2: float) -> np.ndarray:
         """Fill H (see :meth:`_riccati_layout`) from the coefficients; returns the shared array.
         ``a_dyn`` is modified (it becomes Abar)."""
         inv = 1.0 / sig2
@@ -138,7 +141,7 @@ class Covariance(Mechanization):
                     + [q0, q1, q2, q3, q4, q5, q1, q2, q4, qvv - s4 * si])
         return self._H
 
-    def _gain(self, hneg, s4, sig2):
+    def _gain(self, hneg: list[float], s4: float, sig2: float) -> tuple[list[float], float]:
         """K = (R h + s) / sigma^2 (14) from the cached rows of R, and the rate |dH_a/dY K|."""
         inv = 1.0 / sig2
         mul = operator.mul
@@ -147,14 +150,15 @@ class Covariance(Mechanization):
         K = [-d * inv for d in dots]
         return K, abs(sum(map(mul, hneg, K)))
 
-    def _riccati(self, P, H, tau):
+    def _riccati(self, P: np.ndarray, H: np.ndarray, tau: float) -> tuple[np.ndarray, list[list[float]]]:
         """RK4 of (14)'s Riccati equation with H frozen (:func:`riccati_rk4_h`), checked."""
         P = riccati_rk4_h(P, H, tau, self._work)
         rows = P.tolist()
         check_rows(rows)
         return P, rows
 
-    def _cov_coefficients(self, w, f, t):
+    def _cov_coefficients(self, w: Sequence[float], f: Sequence[float], t: float
+                          ) -> tuple[tuple[Any, ...], np.ndarray, list[float], float]:
         """Coefficients at the current state for a covariance interval: (first stage
         values, hneg, H filled, gain K (list), rate |dH_a/dY K|)."""
         first, a_dyn, hneg, q_dyn, s4, sig2 = self._fused(self._Y, w, f, t)

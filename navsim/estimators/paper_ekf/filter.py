@@ -103,7 +103,8 @@ class PaperEkf(CompiledEngine, NoiseScalable):
                  accel_in_update: bool | None = None, bias_states: str = "auto",
                  node_step_m: float = 10.0, stiffness_limit: float = 0.5, lever_arm: str = "auto",
                  observer: bool = True, engine: str = "auto") -> None:
-        self.config = PaperEkfConfig(mode, as_printed, cov_step_s, input_model, accel_in_update,
+        self.config = PaperEkfConfig(mode, as_printed,  # type: ignore[arg-type]  # __post_init__ makes the frozenset
+                                     cov_step_s, input_model, accel_in_update,
                                      bias_states, node_step_m, stiffness_limit, lever_arm, observer, engine)
         self._ready = False
         self._krow = None  # set while the compiled engine holds the state (CompiledEngine._k_arrays)
@@ -154,11 +155,11 @@ class PaperEkf(CompiledEngine, NoiseScalable):
         if not self._observer:  # no (13): Z_ax is not an observation anywhere
             self._accel_in_update = False
         n = 5
-        self._i_clk = n if self._clock else None
+        self._i_clk = n if self._clock else -1
         n += 2 if self._clock else 0
-        self._i_ba = n if biases else None
+        self._i_ba = n if biases else -1
         n += 3 if biases else 0
-        self._i_bg = n if biases else None
+        self._i_bg = n if biases else -1
         n += 3 if biases else 0
         self.n_states = n
         # --- time base
@@ -199,7 +200,7 @@ class PaperEkf(CompiledEngine, NoiseScalable):
         self._Y = y0
         self._P = p0
         self._P_rows = p0.tolist()
-        self._K = None
+        self._K = [0.0] * n
         self._cov_left = 0
         self._P_start = p0.copy()
         self._cov_len = 1
@@ -209,7 +210,7 @@ class PaperEkf(CompiledEngine, NoiseScalable):
         self.substeps = 0
         self._ready = True
 
-    def _require(self):
+    def _require(self) -> None:
         if not self._ready:
             raise RuntimeError("call PaperEkf.reset(context, prior) first")
 

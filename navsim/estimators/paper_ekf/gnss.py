@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from typing import Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,11 +40,18 @@ from .numerics import CSTEP, check_rows, cross
 
 __all__ = ["GnssUpdate"]
 
+_Fn = Callable[[Any], Any]
+
+
+def _functions(phi: float | complex) -> tuple[_Fn, _Fn, _Fn]:
+    """sin, cos, sqrt of :mod:`cmath` for a complex phi (the complex step), else of :mod:`math`."""
+    return (cmath.sin, cmath.cos, cmath.sqrt) if isinstance(phi, complex) else (math.sin, math.cos, math.sqrt)
+
 
 class GnssUpdate(Covariance):
     """(9) and the epoch update (16) (a layer of :class:`PaperEkf`)."""
 
-    def antenna_offset(self, alpha: float, beta: float, gamma: float, t: float, omega_ib_b: ArrayLike
+    def antenna_offset(self, alpha: float, beta: float, gamma: float, t: float, omega_ib_b: Sequence[float] | np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The antenna's ECEF offset from the track point, its velocity, and their partials.
 
@@ -105,13 +112,12 @@ class GnssUpdate(Covariance):
         (2)-(3) measure at the track point (None, the default).
         """
         lam, dlam, _, hh, dh = self.track_functions.scalars(phi)
-        sin, cos = (cmath.sin, cmath.cos) if isinstance(phi, complex) else (math.sin, math.cos)
+        sin, cos, sqrt = _functions(phi)
         sp, cp, sl, cl = sin(phi), cos(phi), sin(lam), cos(lam)
         if self._sphere:
             rn = re = self._a + hh
             rz = re
         else:
-            sqrt = cmath.sqrt if isinstance(phi, complex) else math.sqrt
             w = 1.0 - self._e2 * sp * sp
             r_e = self._a / sqrt(w)
             rn, re = r_e * (1.0 - self._e2) / w + hh, r_e + hh
@@ -121,7 +127,7 @@ class GnssUpdate(Covariance):
         m = dh / rn
         # (5): V_G = B^T V_S, V_S = [k, 1, m] V_Y; B^T columns are e, n, u in ECEF
         t_e = np.array([-sl * k + (-sp * cl) + cp * cl * m, cl * k + (-sp * sl) + cp * sl * m, cp + sp * m])
-        if arm_e is not None:  # (LA.1)-(LA.2)
+        if arm_e is not None and arm_velocity_e is not None:  # (LA.1)-(LA.2)
             d = sat_pos_e - (pos + arm_e)
             rho = np.sqrt(np.sum(d * d, axis=1))
             h_v = np.sum(d * (sat_vel_e - V * t_e - arm_velocity_e), axis=1) / rho
@@ -198,7 +204,7 @@ class GnssUpdate(Covariance):
             H[m:, i + 1] = 1.0
         return h_r, h_v, H
 
-    def _ecef(self, phi) -> np.ndarray:
+    def _ecef(self, phi: float) -> np.ndarray:
         lam, _, _, hh, _ = self.track_functions.scalars(phi)
         sp, cp = math.sin(phi), math.cos(phi)
         if self._sphere:
@@ -208,7 +214,8 @@ class GnssUpdate(Covariance):
             re, rz = r_e + hh, r_e * (1.0 - self._e2) + hh
         return np.array([re * cp * math.cos(lam), re * cp * math.sin(lam), rz * sp])
 
-    def _epoch_update(self, obs, f_mean, t, omega_mean=None):
+    def _epoch_update(self, obs: Any, f_mean: Sequence[float], t: float, omega_mean: np.ndarray | None = None
+                      ) -> tuple[float, int] | None:
         """Discrete update (16) with all valid pseudoranges and Dopplers (+ Z_ax).
 
         ``omega_mean``: the step-mean gyro rate dtheta_1/dt of the epoch's step (rad/s),

@@ -40,7 +40,7 @@ corrections).
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -63,14 +63,15 @@ I_SPHERE, I_PRINTED, I_BIASES, I_CLOCK, I_IA, I_IG, I_ICLK, I_SPE, I_NC, I_SINGL
 
 
 # ---------------------------------------------------------------------------- track
-def _piece(breaks, single, xr):
+def _piece(breaks: np.ndarray, single: int, xr: float) -> int:
     if single:
         return 0
     i = np.searchsorted(breaks, xr, side="right") - 1  # bisect_right - 1
     return 0 if i < 0 else i
 
 
-def track_scalars(phi, breaks, lam_c, h_c, single, order):
+def track_scalars(phi: Any, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray, single: int,
+                  order: int) -> tuple[Any, ...]:
     """(lam, lam', lam'', h, h') at phi: TrackFunctions.scalars (same expressions)."""
     i = _piece(breaks, single, phi.real)
     x = phi - breaks[i]
@@ -92,7 +93,8 @@ def track_scalars(phi, breaks, lam_c, h_c, single, order):
     return lp, l1, l2, hp, h1
 
 
-def track_scalars3(phi, breaks, lam_c, h_c, single, order):
+def track_scalars3(phi: float, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray, single: int,
+                   order: int) -> tuple[float, ...]:
     """(lam, lam', lam'', lam''', h, h', h'') at a real phi: TrackFunctions.scalars3."""
     i = _piece(breaks, single, phi)
     x = phi - breaks[i]
@@ -107,7 +109,7 @@ def track_scalars3(phi, breaks, lam_c, h_c, single, order):
     return l0, l1, l2, l3, h0, h1, h2
 
 
-def _horner2(c, x):
+def _horner2(c: np.ndarray, x: Any) -> tuple[Any, Any, Any]:
     p = 0.0 * x
     d1 = 0.0 * x
     d2 = 0.0 * x
@@ -118,7 +120,7 @@ def _horner2(c, x):
     return p, d1, d2
 
 
-def _horner3(c, x):
+def _horner3(c: np.ndarray, x: float) -> tuple[float, float, float, float]:
     p = 0.0
     d1 = 0.0
     d2 = 0.0
@@ -132,7 +134,8 @@ def _horner3(c, x):
 
 
 # ---------------------------------------------------------------------------- model
-def stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz, c, ic, breaks, lam_c, h_c):
+def stage(a: Any, b: Any, g: Any, phi: Any, V: Any, t: float, wx: Any, wy: Any, wz: Any, fx: Any, fy: Any, fz: Any,
+          c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray) -> tuple[Any, ...]:
     """F(Y) and Z_ax - H_a at one point: PaperEkf._make_stage (same expressions).
 
     Complex-safe in phi (np.sin / np.cos / np.sqrt take both)."""
@@ -197,7 +200,7 @@ def stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz, c, ic, breaks, lam_c, h_c)
     return da, db, dg, V / rn, f_n + acc_n, (f_e - k * f_n - gterm) / w0
 
 
-def _kphi(phi, c, ic, breaks, lam_c, h_c):
+def _kphi(phi: float, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray) -> float:
     """d k / d phi on the ellipsoid: PaperEkf._kphi_c."""
     lam, dlam, ddlam, hh, dh = track_scalars(phi, breaks, lam_c, h_c, ic[I_SINGLE], ic[I_ORDER])
     sp, cp = math.sin(phi), math.cos(phi)
@@ -212,7 +215,9 @@ def _kphi(phi, c, ic, breaks, lam_c, h_c):
     return (ddlam * cp - dlam * sp) * ratio + dlam * cp * (dre - ratio * drn) / rn
 
 
-def fused(Y, wx, wy, wz, fx, fy, fz, t, c, ic, breaks, lam_c, h_c, first, a_dyn, hneg, q_dyn):
+def fused(Y: np.ndarray, wx: Any, wy: Any, wz: Any, fx: Any, fy: Any, fz: Any, t: float, c: np.ndarray,
+          ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray, first: np.ndarray,
+          a_dyn: np.ndarray, hneg: np.ndarray, q_dyn: np.ndarray) -> tuple[float, float]:
     """The fused function of :mod:`~navsim.estimators.paper_ekf.mechanization` (same expressions): fills ``first`` (6), ``a_dyn``,
     ``hneg`` (n), ``q_dyn`` (7) and returns (s4, sig2)."""
     om = c[C_OM]
@@ -388,13 +393,17 @@ def fused(Y, wx, wy, wz, fx, fy, fz, t, c, ic, breaks, lam_c, h_c, first, a_dyn,
     return s4, sig2
 
 
-def _stage_cstep(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz, c, ic, breaks, lam_c, h_c):
+def _stage_cstep(a: Any, b: Any, g: Any, phi: Any, V: Any, t: float, wx: Any, wy: Any, wz: Any, fx: Any, fy: Any,
+                 fz: Any, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray,
+                 h_c: np.ndarray) -> tuple[float, float, float]:
     """phi' , V_Y' and innovation derivatives in phi by the complex step (ellipsoid)."""
     z = stage(a, b, g, complex(phi, _CSTEP), V, t, wx, wy, wz, fx, fy, fz, c, ic, breaks, lam_c, h_c)
     return z[3].imag / _CSTEP, z[4].imag / _CSTEP, z[5].imag / _CSTEP
 
 
-def _fill_h(H, flat, h_sup, bar_idx, bar_col, a_dyn, n_a, hneg, q_dyn, s4, sig2, h_all):
+def _fill_h(H: np.ndarray, flat: np.ndarray, h_sup: np.ndarray, bar_idx: np.ndarray, bar_col: np.ndarray,
+            a_dyn: np.ndarray, n_a: int, hneg: np.ndarray, q_dyn: np.ndarray, s4: float, sig2: float,
+            h_all: bool) -> None:
     """PaperEkf._h_matrix: the state-dependent entries of H through the flat index array."""
     inv = 1.0 / sig2
     nh_len = len(hneg) if h_all else len(h_sup)
@@ -429,7 +438,7 @@ def _fill_h(H, flat, h_sup, bar_idx, bar_col, a_dyn, n_a, hneg, q_dyn, s4, sig2,
     Hf[flat[pos + 9]] = qvv - s4 * si
 
 
-def _gain(P, hneg, s4, sig2, K):
+def _gain(P: np.ndarray, hneg: np.ndarray, s4: float, sig2: float, K: np.ndarray) -> float:
     """PaperEkf._gain: K = (R h + s) / sigma^2 (14) into K; returns |dH_a/dY K|."""
     inv = 1.0 / sig2
     n = len(hneg)
@@ -446,7 +455,7 @@ def _gain(P, hneg, s4, sig2, K):
     return abs(r)
 
 
-def _quad(Hh, R, HZ, out):
+def _quad(Hh: np.ndarray, R: np.ndarray, HZ: np.ndarray, out: np.ndarray) -> None:
     """out = [R; I]^T Hh [R; I] (explicit loops; Hh is 2n x 2n)."""
     n = R.shape[0]
     for r in range(2 * n):
@@ -465,7 +474,8 @@ def _quad(Hh, R, HZ, out):
             out[i, j] = s + HZ[n + i, j]
 
 
-def riccati_rk4(P, H, tau, Hh, top, HZ, m1, m2, m3, m4, out):
+def riccati_rk4(P: np.ndarray, H: np.ndarray, tau: float, Hh: np.ndarray, top: np.ndarray, HZ: np.ndarray,
+                m1: np.ndarray, m2: np.ndarray, m3: np.ndarray, m4: np.ndarray, out: np.ndarray) -> None:
     """_riccati_rk4_h of paper_ekf (the same stages in the same order) into ``out``."""
     n = P.shape[0]
     h2 = 0.5 * tau
@@ -497,7 +507,7 @@ def riccati_rk4(P, H, tau, Hh, top, HZ, m1, m2, m3, m4, out):
             out[i, j] = (top[i, j] + top[j, i]) * sixth + P[i, j]
 
 
-def _rows_ok(P):
+def _rows_ok(P: np.ndarray) -> bool:
     """_check_rows: finite and a non-negative diagonal."""
     n = P.shape[0]
     s = 0.0
@@ -514,7 +524,9 @@ def _rows_ok(P):
     return True
 
 
-def state_rk4(Y, K, row, t0, tau, first, have_first, c, ic, breaks, lam_c, h_c):
+def state_rk4(Y: np.ndarray, K: np.ndarray, row: np.ndarray, t0: float, tau: float, first: np.ndarray,
+              have_first: bool, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray,
+              h_c: np.ndarray) -> None:
     """PaperEkf._state_rk4: RK4 of (14) over tau with the gain K held (in place)."""
     a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
     w1x, w1y, w1z, f1x, f1y, f1z = row[0], row[1], row[2], row[3], row[4], row[5]
@@ -567,13 +579,16 @@ def state_rk4(Y, K, row, t0, tau, first, have_first, c, ic, breaks, lam_c, h_c):
 
 
 # ---------------------------------------------------------------------------- driver
-def work_size(n):
+def work_size(n: int) -> int:
     """Length of the float work array of :func:`advance_py` and :func:`step_core` for n states."""
     return 200 + 30 * n + 16 * n * n
 
 
-def advance_py(i0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, breaks, lam_c, h_c,
-               H, flat, h_sup, bar_idx, bar_col, out_y, out_p, work):
+def advance_py(i0: int, inp: np.ndarray, t_end: np.ndarray, steps: np.ndarray, is_epoch: np.ndarray, Y: np.ndarray,
+               P: np.ndarray, P_start: np.ndarray, K: np.ndarray, cov: np.ndarray, c: np.ndarray, ic: np.ndarray,
+               breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray, H: np.ndarray, flat: np.ndarray,
+               h_sup: np.ndarray, bar_idx: np.ndarray, bar_col: np.ndarray, out_y: np.ndarray, out_p: np.ndarray,
+               work: np.ndarray) -> tuple[int, int]:
     """Advance steps i0, i0 + 1, ... of a batch; returns (i, status).
 
     State (modified in place): Y (n,), P (n, n) the covariance at the end of the current
@@ -675,7 +690,8 @@ def advance_py(i0, inp, t_end, steps, is_epoch, Y, P, P_start, K, cov, c, ic, br
 advance_uncompiled = advance_py  # the driver's source, never replaced by its compiled form (tests)
 
 
-def prepare_row(dtheta_r, dv_r, lvec, dt_pow, row):
+def prepare_row(dtheta_r: np.ndarray, dv_r: np.ndarray, lvec: np.ndarray, dt_pow: np.ndarray,
+                row: np.ndarray) -> None:
     """PaperEkf._prepare for one step: omega and f at s = 0, 1/2, 1 and the mean f (21)."""
     R = dtheta_r.shape[0]
     for s in range(3):
@@ -690,7 +706,7 @@ def prepare_row(dtheta_r, dv_r, lvec, dt_pow, row):
         row[18 + ax] = dv_r[0, ax] / dt_pow[0]
 
 
-def _ek(a, b, g, D):
+def _ek(a: float, b: float, g: float, D: np.ndarray) -> None:
     """euler_krylov_matrix (Appendix 1 of 003) into D (3, 3)."""
     sa, ca = math.sin(a), math.cos(a)
     sb, cb = math.sin(b), math.cos(b)
@@ -700,7 +716,7 @@ def _ek(a, b, g, D):
     D[2, 0], D[2, 1], D[2, 2] = sb * ca, -sa, cb * ca
 
 
-def _clip1(x):
+def _clip1(x: float) -> float:
     if x > 1.0:
         return 1.0
     if x < -1.0:
@@ -708,7 +724,9 @@ def _clip1(x):
     return x
 
 
-def output_row(Y, P, t, c, ic, breaks, lam_c, h_c, sol, cov, J, JP, D, B, M):
+def output_row(Y: np.ndarray, P: np.ndarray, t: float, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray,
+               lam_c: np.ndarray, h_c: np.ndarray, sol: np.ndarray, cov: np.ndarray, J: np.ndarray, JP: np.ndarray,
+               D: np.ndarray, B: np.ndarray, M: np.ndarray) -> None:
     """PaperEkf.outputs for one state: the solution (9) and its 9 x 9 covariance J P J^T."""
     n = Y.shape[0]
     a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
@@ -786,7 +804,8 @@ def output_row(Y, P, t, c, ic, breaks, lam_c, h_c, sol, cov, J, JP, D, B, M):
             cov[q, r] = acc
 
 
-def outputs(Ys, Ps, t, c, ic, breaks, lam_c, h_c, sol, cov):
+def outputs(Ys: np.ndarray, Ps: np.ndarray, t: np.ndarray, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray,
+            lam_c: np.ndarray, h_c: np.ndarray, sol: np.ndarray, cov: np.ndarray) -> None:
     """output_row over a batch: Ys (n, ns), Ps (n, ns, ns), t (n,) -> sol (n, 9), cov (n, 9, 9)."""
     ns = Ys.shape[1]
     J = np.zeros((9, ns))
@@ -798,13 +817,15 @@ def outputs(Ys, Ps, t, c, ic, breaks, lam_c, h_c, sol, cov):
         output_row(Ys[i], Ps[i], t[i], c, ic, breaks, lam_c, h_c, sol[i], cov[i], J, JP, D, B, M)
 
 
-def input_offset(n):
+def input_offset(n: int) -> int:
     """Start in ``work`` of the stage inputs (21,) of the step :func:`step_core` prepared."""
     return 64 + 3 * n + 12 * n * n
 
 
-def step_core(dtheta_r, dv_r, t, step, epoch, state, cov, c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx,
-              bar_col, lvec, dt_pow, work, sol, cov9):
+def step_core(dtheta_r: np.ndarray, dv_r: np.ndarray, t: float, step: int, epoch: bool, state: np.ndarray,
+              cov: np.ndarray, c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray,
+              H: np.ndarray, flat: np.ndarray, h_sup: np.ndarray, bar_idx: np.ndarray, bar_col: np.ndarray,
+              lvec: np.ndarray, dt_pow: np.ndarray, work: np.ndarray, sol: np.ndarray, cov9: np.ndarray) -> int:
     """One navigation step of the step-wise path: the stage inputs (:func:`prepare_row`),
     :func:`advance_py` over the step, the outputs (:func:`output_row`).
 
@@ -854,7 +875,9 @@ P_I0 = P_F0 + 10  # 7 int section starts follow
 P_HEADER = P_I0 + 7
 
 
-def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_pow, n_work, n):
+def pack(c: np.ndarray, ic: np.ndarray, breaks: np.ndarray, lam_c: np.ndarray, h_c: np.ndarray, H: np.ndarray,
+         flat: np.ndarray, h_sup: np.ndarray, bar_idx: np.ndarray, bar_col: np.ndarray, lvec: np.ndarray,
+         dt_pow: np.ndarray, n_work: int, n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
     """One float64 and one int64 buffer holding the constants, the work array and the state
     of :func:`step_core` (copies of the arguments), and their views in the buffers.
 
@@ -863,9 +886,9 @@ def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_p
     the shapes of the arguments (``work`` of ``n_work`` floats, ``state`` of 2n + 2n^2 floats
     and ``cov`` of 3 ints, both uninitialised). The caller uses the views in place of its own
     arrays, so the batch engine and :func:`step_packed` share the same memory."""
-    fparts = [np.ravel(c), np.ravel(breaks), np.ravel(lam_c), np.ravel(h_c), np.ravel(H), np.ravel(lvec),
+    fparts: list[np.ndarray] = [np.ravel(c), np.ravel(breaks), np.ravel(lam_c), np.ravel(h_c), np.ravel(H), np.ravel(lvec),
               np.ravel(dt_pow), np.zeros(n_work), np.zeros(2 * n + 2 * n * n)]
-    iparts = [np.ravel(ic), np.ravel(flat), np.ravel(h_sup), np.ravel(bar_idx), np.ravel(bar_col),
+    iparts: list[np.ndarray] = [np.ravel(ic), np.ravel(flat), np.ravel(h_sup), np.ravel(bar_idx), np.ravel(bar_col),
               np.zeros(3, dtype=np.int64)]
     fstart = np.cumsum([0] + [len(x) for x in fparts])
     istart = np.cumsum([P_HEADER] + [len(x) for x in iparts])
@@ -874,8 +897,8 @@ def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_p
     ibuf[P_N], ibuf[P_R], ibuf[P_NB], ibuf[P_ORDER] = n, len(dt_pow), len(breaks), lam_c.shape[1]
     ibuf[P_F0:P_F0 + 10] = fstart
     ibuf[P_I0:P_I0 + 7] = istart
-    fv = [fbuf[fstart[k]:fstart[k + 1]] for k in range(9)]
-    iv = [ibuf[istart[k]:istart[k + 1]] for k in range(6)]
+    fv: list[np.ndarray] = [fbuf[fstart[k]:fstart[k + 1]] for k in range(9)]
+    iv: list[np.ndarray] = [ibuf[istart[k]:istart[k + 1]] for k in range(6)]
     for view, part in zip(fv + iv, fparts + iparts):
         view[:] = part
     shapes = [np.shape(c), np.shape(breaks), np.shape(lam_c), np.shape(h_c), np.shape(H), np.shape(lvec),
@@ -887,7 +910,8 @@ def pack(c, ic, breaks, lam_c, h_c, H, flat, h_sup, bar_idx, bar_col, lvec, dt_p
                         dt_pow_v, work_v, state_v, cov_v)
 
 
-def step_packed(dtheta_r, dv_r, t, step, epoch, fbuf, ibuf, sol, cov9):
+def step_packed(dtheta_r: np.ndarray, dv_r: np.ndarray, t: float, step: int, epoch: bool, fbuf: np.ndarray,
+                ibuf: np.ndarray, sol: np.ndarray, cov9: np.ndarray) -> int:
     """:func:`step_core` with its constants, work array and state taken from the buffers of
     :func:`pack` (few arguments: the compiled dispatcher checks the type of each argument
     on every call). The same function on the same arrays: the same numbers."""
@@ -908,10 +932,10 @@ def step_packed(dtheta_r, dv_r, t, step, epoch, fbuf, ibuf, sol, cov9):
                     cov9)
 
 
-_compiled = []
+_compiled: list[Callable[..., Any]] = []
 
 
-def _compile():
+def _compile() -> tuple[Callable[..., Any], ...]:
     import numba
 
     jit = numba.njit(cache=True, error_model="numpy")
@@ -923,18 +947,18 @@ def _compile():
     return g["advance_py"], jit(outputs), jit(step_packed)
 
 
-def _get(i):
+def _get(i: int) -> Callable[..., Any]:
     if not _compiled:
         _compiled.extend(_compile())
     return _compiled[i]
 
 
-def advance(*args):
+def advance(*args: Any) -> tuple[int, int]:
     """:func:`advance_py` compiled by numba (compiled on the first call, cached on disk)."""
     return _get(0)(*args)
 
 
-def outputs_compiled(*args):
+def outputs_compiled(*args: Any) -> None:
     """:func:`outputs` compiled."""
     return _get(1)(*args)
 

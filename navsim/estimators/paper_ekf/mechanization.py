@@ -39,7 +39,7 @@ Alonso J.J., ACM TOMS 29 (2003) 245-262.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable, Sequence
 
 from .numerics import CSTEP
 from .state import StateModel
@@ -54,7 +54,8 @@ class Mechanization(StateModel):
     _stage_c: Callable[..., tuple]
     _fused: Callable[..., tuple]
 
-    def _make_stage(self, sin, cos, sqrt, track_scalars):
+    def _make_stage(self, sin: Callable[[Any], Any], cos: Callable[[Any], Any], sqrt: Callable[[Any], Any],
+                    track_scalars: Callable[[Any], tuple[Any, ...]]) -> Callable[..., tuple[Any, ...]]:
         """The right-hand side of (14) without the gain: F(Y) and the innovation (Z_ax - H_a).
 
         Returns ``stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz) -> (alpha', beta',
@@ -69,7 +70,8 @@ class Mechanization(StateModel):
         cent = self._cent
         printed_kin = self._printed_kin
 
-        def stage(a, b, g, phi, V, t, wx, wy, wz, fx, fy, fz):
+        def stage(a: Any, b: Any, g: Any, phi: Any, V: Any, t: Any, wx: Any, wy: Any, wz: Any, fx: Any, fy: Any,
+                  fz: Any) -> tuple[Any, ...]:
             sa = sin(a)
             ca = cos(a)
             sb = sin(b)
@@ -133,7 +135,7 @@ class Mechanization(StateModel):
 
         return stage
 
-    def _make_fused(self):
+    def _make_fused(self) -> Callable[..., tuple[Any, ...]]:
         """The fast form of :meth:`_coefficients` (same quantities, one scalar pass).
 
         Returns ``fused(Y, w, f, t) -> (first, a_dyn, hneg, q_dyn, s4, sig2)``: ``first``
@@ -165,7 +167,7 @@ class Mechanization(StateModel):
         zeros = [0.0] * n
         obj = self
 
-        def fused(Y, w, f, t):
+        def fused(Y: Sequence[float], w: Sequence[float], f: Sequence[float], t: float) -> tuple[Any, ...]:
             a, b, g, phi, V = Y[0], Y[1], Y[2], Y[3], Y[4]
             wx, wy, wz = w
             fx, fy, fz = f
@@ -321,7 +323,7 @@ class Mechanization(StateModel):
 
         return fused
 
-    def _kphi_c(self, phi):
+    def _kphi_c(self, phi: float) -> float:
         """d k / d phi on the ellipsoid, by the same formula as in the stage function."""
         lam, dlam, ddlam, hh, dh = self.track_functions.scalars(phi)
         sp, cp = math.sin(phi), math.cos(phi)

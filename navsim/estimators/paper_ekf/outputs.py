@@ -17,6 +17,8 @@ References: [003] eqs. (5), (8), Appendix 1.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ...rotations import euler_krylov_matrix, hpr_from_mat_nb
@@ -75,7 +77,7 @@ class Outputs(GnssUpdate):
         cov = J @ P @ np.swapaxes(J, -1, -2)
         return sol, 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
-    def _extra_states(self, y) -> dict:
+    def _extra_states(self, y: np.ndarray) -> dict[str, Any]:
         out = {}
         if self._clock:
             out["clock_bias_m"] = float(y[self._i_clk])

@@ -29,6 +29,7 @@ References: [003] eq. (14); seed 000 (Litmanovich 2002) eq. (1.14).
 from __future__ import annotations
 
 import math
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -40,7 +41,8 @@ __all__ = ["PythonEngine"]
 class PythonEngine(Outputs):
     """The reference engine: inputs, the step of (14), sub-steps, the batch loop (a layer of :class:`PaperEkf`)."""
 
-    def _run(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r, dv_r, epochs: dict, steps: np.ndarray):
+    def _run(self, t_end: np.ndarray, inp: np.ndarray, dtheta_r: np.ndarray, dv_r: np.ndarray, epochs: dict[int, Any],
+             steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The reference engine over a batch: :meth:`_reference_step` for each step.
 
         Returns the states (n, ns), covariances (n, ns, ns), NIS (n,) and their degrees of
@@ -62,7 +64,7 @@ class PythonEngine(Outputs):
                            nis, dof)
         return out_y, out_p, nis, dof
 
-    def _prepare(self, dtheta_r: np.ndarray, dv_r: np.ndarray):
+    def _prepare(self, dtheta_r: np.ndarray, dv_r: np.ndarray) -> np.ndarray:
         """Stage inputs (n, 21): omega and f at s = 0, 1/2, 1 and the step-mean f."""
         dtheta_r = np.asarray(dtheta_r, dtype=float)
         dv_r = np.asarray(dv_r, dtype=float)
@@ -80,14 +82,16 @@ class PythonEngine(Outputs):
         # order: w0 f0 w1 f1 w2 f2 fmean -> (n, 21)
         return np.concatenate(cols, axis=1)
 
-    def _coef(self, dtheta_r, dv_r):
+    def _coef(self, dtheta_r: np.ndarray, dv_r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Polynomial coefficients (R, 3) of omega(s) and f(s) of one step (sub-steps)."""
         R = self._minv.shape[0]
         sw = np.array([dtheta_r[r] / self._dt_pow[r] for r in range(R)])
         sf = np.array([dv_r[r] / self._dt_pow[r] for r in range(R)])
         return self._minv @ sw, self._minv @ sf
 
-    def _reference_step(self, i, row, t, step, dtheta_r, dv_r, obs, propagate: bool, out_y, out_p, nis, dof):
+    def _reference_step(self, i: int, row: list[float], t: float, step: int, dtheta_r: np.ndarray, dv_r: np.ndarray,
+                        obs: Any, propagate: bool, out_y: np.ndarray, out_p: np.ndarray, nis: np.ndarray,
+                        dof: np.ndarray) -> None:
         """One step of :meth:`_run`'s loop (propagation unless done, epoch update, outputs)."""
         try:
             if propagate:
@@ -111,7 +115,7 @@ class PythonEngine(Outputs):
             out_y[i] = np.nan
             out_p[i] = np.nan
 
-    def _one_step(self, row, t1, step, dtheta_r, dv_r, i):
+    def _one_step(self, row: list[float], t1: float, step: int, dtheta_r: np.ndarray, dv_r: np.ndarray, i: int) -> None:
         dt = self._dt
         t0 = t1 - dt
         if self._cov_left <= 0:
@@ -139,14 +143,14 @@ class PythonEngine(Outputs):
         self._cov_left -= 1
         self._cov_pos += 1
 
-    def _substeps(self, t0, dtheta_r, dv_r, coeffs):
+    def _substeps(self, t0: float, dtheta_r: np.ndarray, dv_r: np.ndarray, coeffs: tuple[Any, ...] | None) -> None:
         """Adaptive sub-steps inside one navigation step (start-up stiffness)."""
         dt = self._dt
         limit = self.config.stiffness_limit
         cw, cf = self._coef(dtheta_r, dv_r)
         R = cw.shape[0]
 
-        def at(c, s):
+        def at(c: np.ndarray, s: float) -> list[float]:
             powers = np.array([s ** j for j in range(R)])
             return (powers @ c).tolist()
 
@@ -166,7 +170,7 @@ class PythonEngine(Outputs):
             s_done = s_end
             self.substeps += 1
 
-    def _state_rk4(self, row, t0, tau, first=None):
+    def _state_rk4(self, row: Sequence[float], t0: float, tau: float, first: tuple[Any, ...] | None = None) -> None:
         """RK4 of (14) over tau with the gain K held: Y' = F(Y) + K (Z_ax - H_a(Y))."""
         Y = self._Y
         K = self._K

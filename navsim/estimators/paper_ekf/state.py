@@ -36,15 +36,15 @@ from numpy.typing import ArrayLike
 
 from ...earth import EarthModel
 from ...rotations import euler_krylov_from_matrix, euler_krylov_matrix, mat_nb_from_hpr
-from ..base import Context
+from ..base import Context, Prior
 from .config import PaperEkfConfig
 from .track_functions import TrackFunctions
 
 __all__ = ["StateModel", "paper_state"]
 
 
-def paper_state(lat: ArrayLike, lon: ArrayLike, velocity_n: ArrayLike, heading: ArrayLike, pitch: ArrayLike,
-                roll: ArrayLike, t: ArrayLike, earth_rate: float) -> np.ndarray:
+def paper_state(lat: ArrayLike, lon: ArrayLike, velocity_n: ArrayLike, heading: float | np.ndarray,
+                pitch: float | np.ndarray, roll: float | np.ndarray, t: ArrayLike, earth_rate: float) -> np.ndarray:
     """The paper's state [alpha, beta, gamma, phi, V_Y] of a navigation solution, (n, 5).
 
     alpha, beta, gamma from ``D = mat_nb^T B(lat, lon + Omega t)`` (body relative to the
@@ -94,9 +94,9 @@ class StateModel:
     _biases: bool
     _accel_in_update: bool
     _observer: bool
-    _i_clk: int | None  # index of the clock bias state (drift at + 1)
-    _i_ba: int | None  # first accelerometer bias state
-    _i_bg: int | None  # first gyro bias state
+    _i_clk: int  # index of the clock bias state (drift at + 1); -1 without clock states
+    _i_ba: int  # first accelerometer bias state; -1 without bias states
+    _i_bg: int  # first gyro bias state; -1 without bias states
     # time base
     _dt: float  # navigation step, s
     _spe: int  # navigation steps per GNSS period
@@ -108,7 +108,7 @@ class StateModel:
     _Y: list[float]
     _P: np.ndarray
     _P_rows: list[list[float]]
-    _K: list[float] | None
+    _K: list[float]  # the gain held over the covariance interval (zero before the first)
     _P_start: np.ndarray
     _cov_left: int
     _cov_len: int
@@ -116,7 +116,7 @@ class StateModel:
     _diverged: bool
     _t_prev: float
 
-    def _state_from_prior(self, prior) -> tuple[list, np.ndarray]:
+    def _state_from_prior(self, prior: Prior) -> tuple[list[float], np.ndarray]:
         tf = self.track_functions
         p9 = np.asarray(prior.covariance, dtype=float)
         phi = float(prior.lat)
@@ -162,7 +162,7 @@ class StateModel:
                 p[self._i_bg + i, self._i_bg + i] = max(ctx.imu.gyro_bias_sigma, 1e-9) ** 2
         return y, p
 
-    def _radii(self, phi, hh, dh, dlam=0.0):
+    def _radii(self, phi: float, hh: float, dh: float, dlam: float = 0.0) -> tuple[float, float, float, None, float]:
         """(rho_N, rho_E, k, k unused, m) at phi: rho = R + h, k = V_E / V_N, m = V_U / V_N."""
         if self._sphere:
             rn = re = self._a + hh
@@ -174,7 +174,7 @@ class StateModel:
         k = dlam * math.cos(phi) * re / rn
         return rn, re, k, None, dh / rn
 
-    def _kin_matrix(self, a, b, g, printed: bool | None = None) -> np.ndarray:
+    def _kin_matrix(self, a: float, b: float, g: float, printed: bool | None = None) -> np.ndarray:
         """The kinematic matrix of the model: corrected Phi(alpha, gamma) or printed Phi(beta, gamma)."""
         sg, cg = math.sin(g), math.cos(g)
         if self._printed_kin if printed is None else printed:  # (1) as printed

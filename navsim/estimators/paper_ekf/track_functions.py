@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -46,7 +47,15 @@ class TrackFunctions:
         True when the pieces interpolate a non-polynomial track.
     """
 
-    def __init__(self, track, node_step_m: float = 10.0):
+    track: Any
+    breaks: list[float]
+    lam_c: list[tuple[float, ...]]
+    h_c: list[tuple[float, ...]]
+    order: int  # coefficients per piece (4: cubic, 6: quintic)
+    single: bool
+    hermite: bool
+
+    def __init__(self, track: Any, node_step_m: float = 10.0) -> None:
         from ...track import PiecewisePolynomialTrack, PolynomialTrack
 
         self.track = track
@@ -60,7 +69,7 @@ class TrackFunctions:
                 for row in track.h_coeffs:
                     hp = hp + lam_pow * Polynomial(row)
                     lam_pow = lam_pow * lam
-            lam_c = list(lam.coef)
+            lam_c = [float(c) for c in lam.coef]
             lam_c[0] += track.lam0
             self.breaks = [track.phi0]
             self.lam_c = [tuple(float(c) for c in lam_c)]
@@ -84,7 +93,7 @@ class TrackFunctions:
         self._h_arr = np.array(self.h_c)
         self._breaks_arr = np.array(self.breaks)
 
-    def _hermite(self, track, node_step_m: float) -> None:
+    def _hermite(self, track: Any, node_step_m: float) -> None:
         n = max(int(math.ceil(track.length / node_step_m)), 2)
         s = np.linspace(0.0, track.length, n + 1)
         pos, d1, d2 = track.geodetic(s)
@@ -94,28 +103,28 @@ class TrackFunctions:
             raise ConfigError("track", "a track whose latitude is monotonic (seed 003 writes lambda(phi), h(phi)); "
                               "use an arc-length estimator such as 'along-track' otherwise",
                               f"{getattr(track, 'name', 'track')}: latitude turns back near s = {s[i]:.0f} m")
-        vals = []
+        vals: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for col in (1, 2):  # lon, h as functions of lat
             f_s, f_ss = d1[:, col], d2[:, col]
             vals.append((pos[:, col], f_s / lat_s, (f_ss * lat_s - f_s * lat_ss) / lat_s ** 3))
         phi = pos[:, 0]
         order = np.argsort(phi)
         phi = phi[order]
-        vals = [tuple(v[order] for v in triple) for triple in vals]
+        vals = [(p[order], d[order], dd[order]) for p, d, dd in vals]
         width = np.diff(phi)
-        coeffs = [_quintic_hermite(*(v[:-1] for v in triple), *(v[1:] for v in triple), width) for triple in vals]
+        coeffs = [_quintic_hermite(p[:-1], d[:-1], dd[:-1], p[1:], d[1:], dd[1:], width) for p, d, dd in vals]
         self.breaks = phi[:-1].tolist()
         self.lam_c = [tuple(row) for row in coeffs[0].tolist()]
         self.h_c = [tuple(row) for row in coeffs[1].tolist()]
         self.hermite = True
 
-    def _piece(self, phi) -> int:
+    def _piece(self, phi: float | complex) -> int:
         if self.single:
             return 0
         i = bisect.bisect_right(self.breaks, phi.real) - 1
         return 0 if i < 0 else i
 
-    def scalars(self, phi):
+    def scalars(self, phi: Any) -> tuple[Any, Any, Any, Any, Any]:
         """(lam, lam', lam'', h, h') at one latitude (float or complex), rad / m."""
         i = self._piece(phi)
         x = phi - self.breaks[i]
@@ -136,7 +145,7 @@ class TrackFunctions:
         hh = _horner2(self.h_c[i], x)
         return lam[0], lam[1], lam[2], hh[0], hh[1]
 
-    def scalar_function(self):
+    def scalar_function(self) -> Callable[[Any], tuple[Any, ...]]:
         """:meth:`scalars` as a closure; for a single cubic piece with the coefficients bound
         (the same expressions, no piece look-up: the hot path of the stage function)."""
         if not (self.single and self.order == 4):
@@ -145,14 +154,14 @@ class TrackFunctions:
         a0, a1, a2, a3 = self.lam_c[0]
         b0, b1, b2, b3 = self.h_c[0]
 
-        def scalars(phi):
+        def scalars(phi: Any) -> tuple[Any, ...]:
             x = phi - x0
             return (a0 + x * (a1 + x * (a2 + x * a3)), a1 + x * (2.0 * a2 + 3.0 * a3 * x), 2.0 * a2 + 6.0 * a3 * x,
                     b0 + x * (b1 + x * (b2 + x * b3)), b1 + x * (2.0 * b2 + 3.0 * b3 * x))
 
         return scalars
 
-    def scalars3(self, phi: float):
+    def scalars3(self, phi: float) -> tuple[float, ...]:
         """(lam, lam', lam'', lam''', h, h', h'') at one real latitude: one order more than
         :meth:`scalars`, for the analytic phi-derivatives of the covariance coefficients."""
         i = self._piece(phi)
@@ -167,7 +176,7 @@ class TrackFunctions:
         hh = _horner3(self.h_c[i], x)
         return lam[0], lam[1], lam[2], lam[3], hh[0], hh[1], hh[2]
 
-    def arrays(self, phi: np.ndarray):
+    def arrays(self, phi: np.ndarray) -> tuple[np.ndarray, ...]:
         """(lam, lam', lam'', h, h', h'') over an array of latitudes."""
         phi = np.asarray(phi, dtype=float)
         idx = np.clip(np.searchsorted(self._breaks_arr, phi, side="right") - 1, 0, len(self.breaks) - 1)
@@ -187,7 +196,8 @@ class TrackFunctions:
         return lam, dlam, ddlam, hh, dh, ddh
 
 
-def _quintic_hermite(p0, d0, dd0, p1, d1, dd1, width):
+def _quintic_hermite(p0: np.ndarray, d0: np.ndarray, dd0: np.ndarray, p1: np.ndarray, d1: np.ndarray,
+                     dd1: np.ndarray, width: np.ndarray) -> np.ndarray:
     """Coefficients (n, 6) in x = phi - phi0 of the quintics matching value, slope and
     second derivative at both ends of intervals of the given widths."""
     H = width
@@ -201,7 +211,7 @@ def _quintic_hermite(p0, d0, dd0, p1, d1, dd1, width):
     return np.column_stack([c0, c1, c2, c3, c4, c5])
 
 
-def _horner3(c, x):
+def _horner3(c: Sequence[float], x: float) -> tuple[float, float, float, float]:
     """Value and first three derivatives of sum c_j x^j."""
     p = d1 = d2 = d3 = 0.0
     for cj in reversed(c):
@@ -212,7 +222,7 @@ def _horner3(c, x):
     return p, d1, d2, d3
 
 
-def _horner2(c, x):
+def _horner2(c: Sequence[float], x: Any) -> tuple[Any, Any, Any]:
     """Value, first and second derivative of sum c_j x^j."""
     p = 0.0 * x
     d1 = 0.0 * x
