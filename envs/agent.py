@@ -31,10 +31,15 @@ class EstimateAction(np.ndarray):
     """A (9,) action array carrying ``extras = (covariance, nis, nis_dof, cpu_s)``.
 
     It is an ordinary action for every wrapper and learner; the navigation env reads the
-    extras into the episode record (covariance for NEES, NIS, CPU time).
+    extras into the episode record (covariance for NEES, NIS, CPU time). A view or copy of
+    an EstimateAction keeps its extras; an EstimateAction made from any other array has
+    ``(None, None, None, None)``.
     """
 
-    extras: tuple = (None, None, None, None)
+    # a slot, not an instance dict: setting the extras once per step stays cheap, and
+    # the action object holds no dict for the garbage collector to walk
+    __slots__ = ("extras",)
+    extras: tuple
 
     @classmethod
     def of(cls, estimate: Estimate, cpu_s: float | None = None, scale: np.ndarray | None = None) -> "EstimateAction":
@@ -51,10 +56,23 @@ class EstimateAction(np.ndarray):
         return action
 
     def __array_finalize__(self, obj: Any) -> None:
-        # a view or copy of an EstimateAction keeps its extras; anything else has the
-        # class default (no instance attribute set: the cheap case of act's per-step view)
-        if isinstance(obj, EstimateAction):
-            self.extras = obj.extras
+        # a view or copy of an EstimateAction keeps its extras (an exact type test: the
+        # cheap case of act's per-step view of a plain array falls through at once)
+        if type(obj) is EstimateAction:
+            try:
+                self.extras = obj.extras
+            except AttributeError:  # obj's slot never set
+                pass
+
+    def __getattr__(self, name: str) -> Any:
+        # called only when normal lookup fails: the slot of an action made from a plain
+        # array and never set reads as "no extras"
+        if name == "extras":
+            return _NO_EXTRAS
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+
+_NO_EXTRAS: tuple = (None, None, None, None)
 
 
 def resolve_estimator(estimator: Any, options: dict | None = None) -> tuple[str, Any]:
