@@ -6,8 +6,10 @@ in steady state (1100 warm-up steps: past the simulator's first 1000-step chunk)
 
 Table 1, the goals of issue 11 (each row timed over its own loop):
 
-* ``empty``: an empty pythonfmu FMU (FMI 2, one output, ``do_step`` returns at once),
-  ``doStep`` back to back: the floor of any pythonfmu doStep under fmpy;
+* ``empty``: an empty pythonfmu FMU (FMI 2, one output, ``do_step`` returns at once) and
+  an empty pythonfmu3 FMU (FMI 3, the independent variable and one output), ``doStep``
+  back to back: the floor of any pythonfmu / pythonfmu3 doStep under fmpy; each FMI
+  version's rows are read against the empty FMU of the same version;
 * ``core``: the core's ``Simulator.step()``;
 * ``plant``: navsim's plant FMU doStep, FMI 2 and FMI 3 (the C guard of
   :mod:`navsim.fmu.guard` in front of the shim); goal <= 2 x (empty + core);
@@ -151,7 +153,7 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
         times.setdefault(key, []).append(value)
 
     with tempfile.TemporaryDirectory() as tmp:
-        empty = build_empty_fmu(tmp)
+        empties = {fmi: build_empty_fmu(tmp, fmi) for fmi in (2, 3)}
         plants = {fmi: build_fmu(scenario, "plant", fmi, Path(tmp) / f"plant{fmi}.fmu") for fmi in (2, 3)}
         est_paths = {fmi: build_fmu(scenario, "estimator", fmi, Path(tmp) / f"est{fmi}.fmu", estimator="lc-ekf")
                      for fmi in (2, 3)}
@@ -164,14 +166,15 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
                 for i in range(len(b))]
         epoch = np.array([m.gnss is not None for m in meas[warm:warm + steps]])  # the timed steps with a GNSS epoch
         for _ in range(rounds):
-            with FmuInstance(empty, "empty") as inst:
-                inst.initialize()
-                for k in range(warm):
-                    inst.do_step(k * dt, dt)
-                t0 = clock()
-                for k in range(warm, warm + steps):
-                    inst.do_step(k * dt, dt)
-                add("empty", (clock() - t0) / steps)
+            for fmi, empty in empties.items():
+                with FmuInstance(empty, "empty") as inst:
+                    inst.initialize()
+                    for k in range(warm):
+                        inst.do_step(k * dt, dt)
+                    t0 = clock()
+                    for k in range(warm, warm + steps):
+                        inst.do_step(k * dt, dt)
+                    add(f"empty{fmi}", (clock() - t0) / steps)
             sim = Simulator(scenario)
             sim.reset(0)
             for _k in range(warm):
@@ -268,25 +271,26 @@ def main(steps: int = 1000, rounds: int = 3) -> None:
                     est.free()
                     null.free()
     med = {k: statistics.median(v) for k, v in times.items()}
-    floor_plant = med["empty"] + med["core"]
-    floor_est = med["empty"] + med["lc_batch"]
+    floor_plant = {fmi: med[f"empty{fmi}"] + med["core"] for fmi in (2, 3)}
+    floor_est = {fmi: med[f"empty{fmi}"] + med["lc_batch"] for fmi in (2, 3)}
     us = 1e6
     print(f"paper-2012, {steps} communication steps of {dt:g} s after {warm} warm-up steps, under fmpy; "
           f"CPU time of this process per step, median of {rounds} interleaved round(s)")
     print()
     print("| case | us per step | floor | ratio | goal |")
     print("|---|---:|---|---:|---:|")
-    print(f"| empty pythonfmu FMU doStep (FMI 2) | {med['empty'] * us:.1f} | | | |")
+    print(f"| empty pythonfmu FMU doStep (FMI 2) | {med['empty2'] * us:.1f} | | | |")
+    print(f"| empty pythonfmu3 FMU doStep (FMI 3) | {med['empty3'] * us:.1f} | | | |")
     print(f"| core Simulator.step() | {med['core'] * us:.1f} | | | |")
     for fmi in (2, 3):
         m = med[f"plant{fmi}"]
-        print(f"| plant FMU doStep, FMI {fmi} | {m * us:.1f} | empty + core = {floor_plant * us:.1f} us "
-              f"| {m / floor_plant:.2f} | <= 2 |")
+        print(f"| plant FMU doStep, FMI {fmi} | {m * us:.1f} | empty (FMI {fmi}) + core = "
+              f"{floor_plant[fmi] * us:.1f} us | {m / floor_plant[fmi]:.2f} | <= 2 |")
     print(f"| lc-ekf step_batch per step (run_episode) | {med['lc_batch'] * us:.1f} | | | |")
     for fmi in (2, 3):
         m = med[f"estimator{fmi}"]
-        print(f"| estimator FMU doStep (lc-ekf, FMI {fmi}) | {m * us:.1f} | empty + lc-ekf batch = "
-              f"{floor_est * us:.1f} us | {m / floor_est:.2f} | <= 2 |")
+        print(f"| estimator FMU doStep (lc-ekf, FMI {fmi}) | {m * us:.1f} | empty (FMI {fmi}) + lc-ekf batch = "
+              f"{floor_est[fmi] * us:.1f} us | {m / floor_est[fmi]:.2f} | <= 2 |")
     print(f"| lc-ekf step() per step | {med['lc_step'] * us:.1f} | | | |")
     print(f"| lc-ekf step_row per step, back to back | {med['lc_row'] * us:.1f} | | | |")
     print()

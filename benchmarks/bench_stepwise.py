@@ -18,7 +18,9 @@ step, 1 Hz GNSS, 24 channels, 4 multiple-integral orders), seed 0:
      CPU clock read twice, the action with its extras), to read the other agent rows
      against.
 
-   ``agent / batch`` is the figure the issue sets a goal for (<= 1.5). The last column is
+   ``agent / batch`` is the figure the issue sets a goal for (<= 1.5); ``(batch + agent
+   floor) / batch`` is that ratio for an estimator whose step costs exactly its batch
+   share, the least a step path through the agent can reach. The last column is
    the largest position difference (m, local level) between the agent's solutions and
    the batch solutions over the episode: the step path must give the numbers of
    ``run_episode``. A second table splits the ``step`` and ``agent`` costs into the steps
@@ -158,17 +160,20 @@ def estimator_table(duration: float, rounds: int, only: tuple[str, ...] = ESTIMA
     lines = [f"paper-2012, {duration:g} s episode ({n} navigation steps), seed 0; CPU time per navigation "
              f"step, median of {rounds} interleaved round(s)", "",
              "| estimator | batch (us/step) | step (us/step) | agent (us/step) | step / batch | agent / batch "
-             "| max position difference agent vs batch (m) |",
-             "|---|---:|---:|---:|---:|---:|---:|"]
+             "| (batch + agent floor) / batch | max position difference agent vs batch (m) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
     batch_cost = {}
+    floor = statistics.median(times[(FLOOR, "agent")])
     for name in names:
         b, s, a = (statistics.median(times[(name, k)]) for k in ("batch", "step", "agent"))
         batch_cost[name] = b
         diff = _position_error_m(solutions[(name, "agent")], solutions[(name, "batch")], context.earth)
         lines.append(f"| {name} | {b * 1e6:.1f} | {s * 1e6:.1f} | {a * 1e6:.1f} | {s / b:.2f} | {a / b:.2f} "
-                     f"| {diff:.1e} |")
-    lines.append(f"| {FLOOR} | | | {statistics.median(times[(FLOOR, 'agent')]) * 1e6:.1f} | | | |")
-    lines += ["", "Goal (issue 11): agent / batch <= 1.5 for every row."]
+                     f"| {(b + floor) / b:.2f} | {diff:.1e} |")
+    lines.append(f"| {FLOOR} | | | {floor * 1e6:.1f} | | | | |")
+    lines += ["", "Goal (issue 11): agent / batch <= 1.5 for every row. The column (batch + agent floor) / batch "
+              "is the ratio an agent step would have if the estimator's step cost exactly its batch share: "
+              "the least any per-step path through EstimatorAgent can reach on this machine."]
     lines += [""] + split_table(names, context, start, meas, observations, info, rounds)
     return lines, batch_cost
 
