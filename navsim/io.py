@@ -45,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import os
+import stat
 import tempfile
 import zipfile
 from pathlib import Path
@@ -106,20 +107,36 @@ def chunk_arrays(chunk: Chunk | ChunkBatch, n_sats: int | None = None) -> dict[s
     return out
 
 
+def _umask() -> int:
+    """The process's umask (read by setting and restoring it; there is no read-only call)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_output(path: str | os.PathLike[str], mode: str = "wb", **open_kw: Any) -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path`` for writing; on success it is flushed to disk
     and renamed onto ``path`` (``os.replace``, atomic on POSIX and Windows), on any
     failure (an exception, a full disk) it is removed. A reader, or a killed writer,
     therefore sees the previous file or the new one whole, never a half-written one
-    (a kill can leave a ``.<name>.*.part`` file beside it, never the target)."""
+    (a kill can leave a ``.<name>.*.part`` file beside it, never the target).
+
+    The file gets the permissions an ordinary ``open`` would give it: those of the file it
+    replaces, or for a new file ``0o666`` less the process's umask (``mkstemp`` makes the
+    temporary file ``0o600``)."""
     path = Path(path)
+    try:
+        perm = stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        perm = 0o666 & ~_umask()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
         with os.fdopen(fd, mode, **open_kw) as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, perm)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):

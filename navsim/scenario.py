@@ -474,7 +474,7 @@ class Scenario:
         if candidates[0].is_file():
             return candidates[0]
         field = field or ("track.file" if kind == "track" else "gnss.constellation")
-        raise ConfigError(field, "an existing file", f"{name!r} (looked in: {', '.join(str(p) for p in candidates)})")
+        raise ConfigError(field, f"an existing file (looked in: {', '.join(str(p) for p in candidates)})", name)
 
 
 _HASH_OMIT_IF_DEFAULT = (("gnss", "lever_arm_m", [0.0, 0.0, 0.0]), ("motion", "speed_amplitude_mps", 0.0),

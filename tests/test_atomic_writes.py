@@ -4,7 +4,9 @@ intact (kill tests with SIGKILL in the middle of the write)."""
 
 from __future__ import annotations
 
+import os
 import signal
+import stat
 import subprocess
 import sys
 
@@ -101,3 +103,23 @@ def test_plot_killed_during_the_save_keeps_the_previous_image(tmp_path):
     assert out.read_bytes() == before  # the previous image whole; at most a .part beside it
     assert all(p.name == out.name or p.name.endswith(".part") for p in tmp_path.iterdir())
 
+
+
+@pytest.mark.skipif(os.name != "posix", reason="POSIX permission bits")
+def test_written_files_get_the_permissions_of_an_ordinary_open(tmp_path):
+    """A new file: 0o666 less the umask (not mkstemp's 0o600); a replaced file keeps its mode."""
+    old = os.umask(0o022)
+    try:
+        with atomic_output(tmp_path / "new.bin") as fh:
+            fh.write(b"x")
+        with open(tmp_path / "plain.bin", "wb") as fh:  # what open() gives under the same umask
+            fh.write(b"x")
+        assert stat.S_IMODE(os.stat(tmp_path / "new.bin").st_mode) == stat.S_IMODE(
+            os.stat(tmp_path / "plain.bin").st_mode) == 0o644
+        os.chmod(tmp_path / "new.bin", 0o640)
+        with atomic_output(tmp_path / "new.bin") as fh:
+            fh.write(b"y")
+        assert stat.S_IMODE(os.stat(tmp_path / "new.bin").st_mode) == 0o640
+        assert (tmp_path / "new.bin").read_bytes() == b"y"
+    finally:
+        os.umask(old)

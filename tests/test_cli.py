@@ -61,3 +61,20 @@ def test_integer_options_refused_in_one_line(tmp_path, capsys, option, value, me
     assert main(["simulate", "paper-2012", "-o", str(tmp_path / "x.npz"), option, value]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_reader_that_leaves_the_pipe_early_gets_a_quiet_stop():
+    """`navsim run --json | head -c 10`: the reader closes the pipe before navsim writes; no
+    'Broken pipe' error line and no traceback, the exit status a shell gives SIGPIPE."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "navsim.cli", "run", "paper-2012", "--estimator", "ins-only",
+                             "--seed", "0", "--set", "timing.duration_s=2", "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first byte is written
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    proc.stderr.close()
+    assert proc.returncode == 141, (proc.returncode, err)
+    assert "Broken pipe" not in err and "Traceback" not in err, err

@@ -74,7 +74,8 @@ def test_missing_file_names_every_place_tried_and_no_contents(tmp_path, elsewher
     with pytest.raises(ConfigError) as err:
         build_track(sc)
     text = str(err.value)
-    assert text.startswith("track.file: expected an existing file")
+    assert text.startswith("track.file: expected an existing file (looked in: ")
+    assert text.endswith(", got 'nowhere.geojson'")  # the value as written, quoted once
     for place in (tmp_path / "scen" / "nowhere.geojson", elsewhere / "nowhere.geojson",
                   BUNDLED.parent / "nowhere.geojson"):
         assert str(place) in text

@@ -92,8 +92,9 @@ class CampaignSpec:
 def _check_keys(table: dict, allowed: Iterable[str], where: str, source: str | None) -> None:
     extra = sorted(set(table) - set(allowed))
     if extra:
+        # the unknown key is what came (its value is not at fault)
         raise ConfigError(f"{where}.{extra[0]}" if where else extra[0], f"one of the keys {sorted(allowed)}",
-                          table[extra[0]], source=source)
+                          extra[0], source=source)
 
 
 def _tables(data: dict, key: str, keys: tuple[str, ...], source: str | None) -> Iterator[tuple[str, dict]]:

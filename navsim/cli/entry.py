@@ -6,6 +6,7 @@ command that succeeds; after a failure the error is the one line.
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -38,6 +39,17 @@ def expected_failure(exc: BaseException) -> str | None:
     return None
 
 
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's flush at exit does not
+    fail again on the closed pipe (the recipe of Python's documentation, signal module,
+    "Note on SIGPIPE")."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # no file descriptor behind stdout (captured): nothing to flush
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
@@ -64,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("navsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout left (`navsim run --json | head`): stop quietly
+        _silence_stdout()
+        return 141  # 128 + SIGPIPE, as a shell reports a pipeline's writer killed by it
     except Exception as exc:
         message = expected_failure(exc)
         if message is None:
