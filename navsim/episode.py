@@ -21,8 +21,9 @@ from .earth import earth_model
 from .estimators.base import Estimator
 from .scenario import Scenario
 from .sensors import imu as imu_mod
+from .sensors.models import build_gnss_error_model, build_imu_model
 from .signals import MEASUREMENT_SIGNALS, OPTIONAL_SENSORS
-from .simulator import Chunk, Simulator, build_gnss_error_model, build_imu_model, build_track
+from .simulator import Chunk, Simulator, build_track
 from .types import (
     Context,
     Estimate,

@@ -36,7 +36,7 @@ import dataclasses
 import math
 import sys
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Iterator, Mapping, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Iterator, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,6 +58,7 @@ from .sensors import gnss as gnss_mod
 from .sensors import imu as imu_mod
 from .sensors import odometer as odometer_mod
 from .sensors import outages as outage_mod
+from .sensors.models import build_gnss_error_model, build_imu_model
 from .threads import limited
 from .truthgen import TruthGenerator
 from .types import Prior  # the initial estimate handed to estimators: truth plus a drawn error
@@ -65,8 +66,6 @@ from .validation import check_seed, check_steps, validate_scenario
 
 if TYPE_CHECKING:  # type hints only
     from concurrent.futures import Future, ThreadPoolExecutor
-
-    from _typeshed import DataclassInstance
 
     from .earth import EarthModel
     from .scenario import TimingConfig
@@ -253,38 +252,6 @@ def _oscillations(scenario: Scenario) -> tuple[Oscillation, ...]:
     )
 
 
-_D = TypeVar("_D", bound="DataclassInstance")
-
-
-def _replace_checked(obj: _D, overrides: Mapping[str, Any], prefix: str) -> _D:
-    names = {f.name for f in dataclasses.fields(obj)}
-    for key in overrides:
-        if key not in names:
-            raise ConfigError(f"{prefix}.{key}", f"a field of {type(obj).__name__}: {sorted(names)}", key)
-    converted: dict[str, Any] = {}
-    for key, value in overrides.items():
-        current = getattr(obj, key)
-        converted[key] = np.asarray(value, dtype=float) if isinstance(current, np.ndarray) else (
-            tuple(value) if isinstance(current, tuple) and isinstance(value, list) else value)
-    try:
-        return dataclasses.replace(obj, **converted)
-    except ConfigError:
-        raise
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(prefix, "valid field values", f"{overrides} ({exc})") from None
-
-
-def build_imu_model(scenario: Scenario) -> imu_mod.ImuErrorModel:
-    """The truth-side IMU error model: preset plus ``[imu.gyro]``/``[imu.accel]`` overrides."""
-    model = imu_mod.imu_preset(scenario.imu.preset)
-    changes: dict[str, Any] = {}
-    if scenario.imu.gyro:
-        changes["gyro"] = _replace_checked(model.gyro, scenario.imu.gyro, "imu.gyro")
-    if scenario.imu.accel:
-        changes["accel"] = _replace_checked(model.accel, scenario.imu.accel, "imu.accel")
-    return dataclasses.replace(model, **changes) if changes else model
-
-
 def build_gnss(scenario: Scenario, earth: EarthModel) -> tuple[gnss_mod.Constellation, gnss_mod.GnssErrorModel]:
     """Constellation and truth-side GNSS error model of the scenario."""
     cfg = scenario.gnss
@@ -295,15 +262,6 @@ def build_gnss(scenario: Scenario, earth: EarthModel) -> tuple[gnss_mod.Constell
     else:
         raise ConfigError("gnss.constellation", "'gps', 'glonass' or 'yuma:<file>'", cfg.constellation)
     return constellation, build_gnss_error_model(scenario)
-
-
-def build_gnss_error_model(scenario: Scenario) -> gnss_mod.GnssErrorModel:
-    """The truth-side GNSS error model: preset plus ``gnss.overrides``."""
-    cfg = scenario.gnss
-    model = gnss_mod.GnssErrorModel.preset(cfg.preset)
-    if cfg.overrides:
-        model = _replace_checked(model, cfg.overrides, "gnss.overrides")
-    return model
 
 
 # ============================================================================ simulator

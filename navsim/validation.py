@@ -9,6 +9,9 @@ tasks) and by campaign loading before any episode runs.
 
 Refused (:class:`~navsim.errors.ConfigError`, naming the field, the expectation, the value):
 
+* an override of the IMU or GNSS error model (``[imu.gyro]``, ``[imu.accel]``,
+  ``gnss.overrides``) that names no field of the model or that the model refuses
+  (:mod:`navsim.sensors.models`: the same build the simulator uses);
 * a body oscillation at or above the IMU's Nyquist frequency ``1 / (2 imu_period_s)``:
   the sampled increments alias it to another frequency (Shannon);
 * an outage window starting before the episode (``t < 0`` does not exist);
@@ -58,6 +61,7 @@ from .option_checks import (
     check_probability,
     check_time_constant,
 )
+from .sensors.models import build_gnss_error_model, build_imu_model
 
 if TYPE_CHECKING:  # type hints only
     from .scenario import Scenario
@@ -130,6 +134,8 @@ def truth_block_bytes(scenario: Scenario) -> int:
 
 def validate_scenario(scenario: Scenario) -> None:
     """Check the cross-section and physical sense of a scenario (see the module notes)."""
+    build_imu_model(scenario)  # the overrides of [imu.gyro], [imu.accel] and gnss.overrides
+    build_gnss_error_model(scenario)
     timing = scenario.timing
     nyquist = 0.5 / timing.imu_period_s
     for i, osc in enumerate(scenario.motion.oscillations):

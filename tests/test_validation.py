@@ -298,3 +298,20 @@ def test_track_file_resolves_relative_to_the_scenario_file(tmp_path, monkeypatch
     monkeypatch.chdir(tmp_path)  # the current directory has no t.csv: the scenario's folder is used
     sim = Simulator(load_scenario(path))
     assert sim.track.length > 300.0
+
+
+@pytest.mark.parametrize("section,field,message", [
+    ('[gnss]\noverrides = { pseudorange_sigma_m = -3.0 }', "gnss.overrides.pseudorange_sigma_m", "got -3.0"),
+    ('[gnss]\noverrides = { sigma = 1.0 }', "gnss.overrides.sigma", "a field of GnssErrorModel"),
+    ('[imu.gyro]\nscale_factor = "x"', "imu.gyro.scale_factor", "got 'x'"),  # was a ValueError traceback
+    ('[imu.accel]\nwhite_noise_density = -1', "imu.accel.white_noise_density", "got -1"),
+])
+def test_sensor_model_overrides_are_checked_when_the_file_is_read(tmp_path, capsys, section, field, message):
+    """`navsim show` refuses what `navsim run` would: the sensor models' overrides are built
+    by the validation pass of loading, and the one-line error names the file and the field
+    as the file spells it (not the model's internal name, not the array it became)."""
+    path = tmp_path / "mine.toml"
+    path.write_text(f'name = "mine"\n{section}\n', encoding="utf-8")
+    assert main(["show", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(f"navsim: error: mine.toml: {field}: expected") and message in err

@@ -102,6 +102,8 @@ def cases() -> list[Case]:
         ("oscillation above the IMU Nyquist (1 kHz on 100 Hz)", _toml_scen(
             '[[motion.oscillations]]\nangle = "pitch"\nfrequency_hz = 1000.0\namplitude_deg = 0.1\n')),
         ("imu.gyro is a string", {"s.toml": 'name = "x"\n[imu]\ngyro = "fast"\n'}),
+        ("imu.gyro.scale_factor is a string", {"s.toml": 'name = "x"\n[imu.gyro]\nscale_factor = "x"\n'}),
+        ("gnss.overrides negative sigma", {"s.toml": '[gnss]\noverrides = { pseudorange_sigma_m = -3.0 }\n'}),
         ("timing.duration_s = 0", {"s.toml": "[timing]\nduration_s = 0.0\n"}),
         ("timing.duration_s = -5", {"s.toml": "[timing]\nduration_s = -5.0\n"}),
         ("timing.duration_s = nan", {"s.toml": "[timing]\nduration_s = nan\n"}),

@@ -1,6 +1,8 @@
 """Sensors: IMU (:mod:`navsim.sensors.imu`), GNSS (:mod:`navsim.sensors.gnss`), GNSS
-signal outages (:mod:`navsim.sensors.outages`) and the wheel odometer
-(:mod:`navsim.sensors.odometer`).
+signal outages (:mod:`navsim.sensors.outages`), the wheel odometer
+(:mod:`navsim.sensors.odometer`) and the barometric altimeter (:mod:`navsim.sensors.baro`);
+:mod:`navsim.sensors.models` builds a scenario's IMU and GNSS error models (preset plus
+checked overrides).
 
 All of them are truth-side models: they turn the true motion into measurements with
 errors drawn from explicit ``numpy.random.Generator`` streams and carry their recursive
