@@ -94,6 +94,12 @@ class EstimatorAgent:
         of a bundled estimator (:func:`navsim.estimators.make`).
     name : str, optional
         Label of the episode scores (default: the registry name or the class name).
+    cpu_time : bool, default True
+        Measure the estimator's CPU time per step (``time.process_time()`` just before and
+        just after its call; the episode score's ``step_time_us``, ``cpu_total_s`` and
+        ``realtime_factor``). ``False`` skips the two clock reads (a system call each on
+        some virtual machines) and records no CPU time: those three scores are then NaN,
+        every other number is the same.
     **options
         Options of a named estimator.
 
@@ -116,7 +122,10 @@ class EstimatorAgent:
     False
     """
 
-    def __init__(self, estimator: Any, name: str | None = None, **options: Any) -> None:
+    def __init__(self, estimator: Any, name: str | None = None, *, cpu_time: bool = True, **options: Any) -> None:
+        if not isinstance(cpu_time, bool):
+            raise ConfigError("EstimatorAgent cpu_time", "True or False", cpu_time)
+        self.cpu_time = cpu_time
         if options and not isinstance(estimator, str):
             raise ConfigError("EstimatorAgent options", "options only with an estimator name", options)
         default_name, estimator = resolve_estimator(estimator, options)
@@ -156,7 +165,8 @@ class EstimatorAgent:
         self._view = _view_class(eager)(self.codec, eager)
         # what act() reads per step, in one tuple (one attribute lookup instead of five)
         self._fast = (None if self._step_row is None
-                      else (self._step_row, self._view.fill, self._decode, self._scale, time.process_time))
+                      else (self._step_row, self._view.fill, self._decode, self._scale,
+                            time.process_time if self.cpu_time else None))
         self._last = None
 
     def measurement(self, obs: dict) -> Measurement:
@@ -176,7 +186,7 @@ class EstimatorAgent:
         :class:`~navsim.types.Estimate` built); otherwise the decoded measurement goes to
         ``step``. The CPU-time extra is ``time.process_time()`` read just before and just
         after the estimator's call (decoding and the action are not in it), as
-        :func:`navsim.episode.run_episode` measures ``step``.
+        :func:`navsim.episode.run_episode` measures ``step``; None with ``cpu_time=False``.
         """
         k = self._step
         self._step = k + 1
@@ -185,9 +195,13 @@ class EstimatorAgent:
             return self._act_step(obs, k)
         step_row, fill, decode, scale, clock = fast
         m = decode(obs, k) if obs["gnss_new_epoch"].item() else fill(obs, k)
-        t0 = clock()
-        row, cov, nis, dof = step_row(m)
-        cpu = clock() - t0
+        if clock is None:
+            row, cov, nis, dof = step_row(m)
+            cpu = None
+        else:
+            t0 = clock()
+            row, cov, nis, dof = step_row(m)
+            cpu = clock() - t0
         self._last = (m.t, row, cov, nis, dof)
         out = (row / scale).view(EstimateAction)
         out.extras = (cov, nis, dof or 0, cpu)
@@ -196,6 +210,10 @@ class EstimatorAgent:
     def _act_step(self, obs: dict, k: int) -> EstimateAction:
         """:meth:`act` of an estimator without ``step_row``: ``step`` on the decoded measurement."""
         m = self._decode(obs, k)
+        if not self.cpu_time:
+            estimate = self._estimator_step(m)
+            self._last = estimate
+            return EstimateAction.of(estimate, None, self._scale)
         clock = time.process_time
         t0 = clock()
         estimate = self._estimator_step(m)

@@ -120,3 +120,53 @@ def test_the_hint_is_on_cost_not_content():
         x, y = plain.act(o), hinted.act(o)
         assert np.array_equal(np.asarray(x), np.asarray(y))
         assert np.array_equal(x.extras[0], y.extras[0])
+
+
+@pytest.mark.parametrize("estimator", ["lc-ekf", "full-state-ekf"])
+def test_without_cpu_time_the_same_solutions_and_no_cpu_score(estimator):
+    """``cpu_time=False`` reads no clock: the same actions and covariances bit for bit (the
+    estimator's call is the same; only the two clock reads around it are left out), the
+    CPU extra None, and the episode score's CPU figures NaN while every accuracy figure
+    is equal. lc-ekf takes the fast path (``step_row``), full-state-ekf ``step``."""
+    import dataclasses
+    import math
+
+    from navsim.estimators import make
+
+    scores, actions = {}, {}
+    for timed in (True, False):
+        env = gym.make("navsim/PaperRail-v0", timing={"duration_s": 3.0})
+        agent = EstimatorAgent(make(estimator), cpu_time=timed)
+        assert agent.cpu_time is timed
+        obs, info = env.reset(seed=4)
+        agent.reset(info)
+        rows = []
+        while True:
+            a = agent.act(obs)
+            rows.append((np.asarray(a).copy(), a.extras))
+            obs, _, terminated, truncated, info = env.step(a)
+            if terminated or truncated:
+                break
+        scores[timed], actions[timed] = info["episode_score"], rows
+        env.close()
+    for (a, ea), (b, eb) in zip(actions[True], actions[False]):
+        assert np.array_equal(a, b)
+        assert (ea[0] is None and eb[0] is None) or np.array_equal(ea[0], eb[0])
+        assert isinstance(ea[3], float) and eb[3] is None
+    cpu_fields = {"step_time_us", "cpu_total_s", "realtime_factor"}
+    timed, untimed = dataclasses.asdict(scores[True]), dataclasses.asdict(scores[False])
+    for key in cpu_fields:
+        assert math.isfinite(timed[key]) and math.isnan(untimed[key]), key
+    rest = [k for k in timed if k not in cpu_fields]
+    assert "horizontal_rmse_m" in rest
+    for key in rest:
+        x, y = timed[key], untimed[key]
+        assert (x == y) or (isinstance(x, float) and math.isnan(x) and math.isnan(y)) \
+            or (isinstance(x, np.ndarray) and np.array_equal(x, y, equal_nan=True)), key
+
+
+def test_cpu_time_must_be_a_bool():
+    from navsim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="cpu_time"):
+        EstimatorAgent("ins-only", cpu_time="no")
