@@ -639,7 +639,8 @@ def add_bench_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
                    help="seeds A..B-1 (default 0:10), or A:B:STEP, or a comma list")
     p.add_argument("--option", action="append", default=[], metavar="[EST.]KEY=VALUE",
                    help="estimator option for all estimators, or for EST only; repeatable")
-    p.add_argument("--out", default=None, metavar="DIR", help="write bench.md/.csv/.json, runs.csv and plots here")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="write bench.md/.csv/.json, runs.csv and plots here (created if missing)")
     p.add_argument("--interval", choices=("t", "percentile"), default="t",
                    help="95 %% interval: t = Student-t interval of the mean (default), percentile = spread of runs")
     p.add_argument("--no-plots", action="store_true", help="with --out: skip the PNG files")

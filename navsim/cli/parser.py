@@ -58,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="write truth and measurements of one episode")
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("-o", "--output", required=True, help="output file (.npz or .csv)")
+    p.add_argument("-o", "--output", required=True, help="output file (.npz or .csv; its folder is created if missing)")
     p.add_argument("--format", choices=("npz", "csv"), help="default: from the file suffix")
     p.add_argument("--chunk", type=_positive_int, default=10_000, help="steps generated per chunk (memory bound)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a field")
