@@ -66,7 +66,7 @@ I_SPHERE, I_PRINTED, I_BIASES, I_CLOCK, I_IA, I_IG, I_ICLK, I_SPE, I_NC, I_SINGL
 def _piece(breaks: np.ndarray, single: int, xr: float) -> int:
     if single:
         return 0
-    i = np.searchsorted(breaks, xr, side="right") - 1  # bisect_right - 1
+    i = int(np.searchsorted(breaks, xr, side="right")) - 1  # bisect_right - 1
     return 0 if i < 0 else i
 
 
