@@ -295,19 +295,10 @@ class OdometerConfig:
 
     def model(self) -> OdometerModel:
         """The truth-side odometer model: the preset with the overrides applied."""
+        from .sensors.models import replace_checked  # the sensor package imports this module
+
         base = OdometerModel.preset(self.preset)
-        if not self.overrides:
-            return base
-        names = [f.name for f in dataclasses.fields(OdometerModel)]
-        for key in self.overrides:
-            if key not in names:
-                raise ConfigError(f"odometer.overrides.{key}", f"a field of OdometerModel: {names}", key)
-        try:
-            return dataclasses.replace(base, **self.overrides)
-        except ConfigError:
-            raise
-        except (TypeError, ValueError) as exc:
-            raise ConfigError("odometer.overrides", "valid OdometerModel values", f"{self.overrides} ({exc})") from None
+        return replace_checked(base, self.overrides, "odometer.overrides") if self.overrides else base
 
 
 @dataclass(frozen=True, slots=True)

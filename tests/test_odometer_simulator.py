@@ -56,7 +56,7 @@ def test_odometer_table_round_trips_and_validates(tmp_path):
         sc.with_overrides({"odometer": {"preset": "unicycle"}})
     with pytest.raises(ConfigError, match="odometer.overrides.wheel"):
         sc.with_overrides({"odometer": {"overrides": {"wheel": 1.0}}})
-    with pytest.raises(ConfigError, match="odometer.slip_fraction"):
+    with pytest.raises(ConfigError, match=r"odometer\.overrides\.slip_fraction"):
         sc.with_overrides({"odometer": {"overrides": {"slip_fraction": 2.0}}})
     with pytest.raises(ConfigError, match="odometer.enabled"):
         sc.with_overrides({"odometer": {"enabled": "yes"}})

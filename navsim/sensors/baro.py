@@ -72,7 +72,6 @@ References
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Sequence
@@ -264,14 +263,10 @@ class BaroConfig:
 
     def model(self) -> BaroModel:
         """The truth-side model: the preset with the overrides applied."""
+        from .models import replace_checked  # models imports the IMU and GNSS packages: only when needed
+
         base = BaroModel.preset(self.preset)
-        if not self.overrides:
-            return base
-        names = [f.name for f in dataclasses.fields(BaroModel)]
-        for key in self.overrides:
-            if key not in names:
-                raise ConfigError(f"baro.overrides.{key}", f"a field of BaroModel: {names}", key)
-        return dataclasses.replace(base, **self.overrides)
+        return replace_checked(base, self.overrides, "baro.overrides") if self.overrides else base
 
 
 def simulate_baro_batch(h_true: ArrayLike, model: BaroModel, states: Sequence[BaroState],
