@@ -384,7 +384,7 @@ class NavigationVectorEnv(gym.vector.VectorEnv):
             first = EpisodeTape(self.n_steps)
             self.tapes = [first] + [EpisodeTape(self.n_steps, truth_of=first) for _ in range(self.num_envs - 1)]
         n = self.num_envs
-        self._held = (np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64))
+        self._held: tuple[np.ndarray, np.ndarray] = (np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64))
         self._load_chunk()
         info = {"context": np.array([self.context] * n, dtype=object), "prior": np.array(self.priors, dtype=object),
                 "gnss_prn": np.tile(self.prn, (n, 1)), "seed": np.array(self.seeds),

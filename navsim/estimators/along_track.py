@@ -769,7 +769,7 @@ class AlongTrackFilter(NoiseScalable):
             rho, rate, drho_ds, drate_ds, drate_dv = self._measurement_model(s, v, obs, use)
             m = int(use.sum())
             rows, ys, rs = [], [], []
-            H = np.zeros((m, self.n_x))
+            H: np.ndarray = np.zeros((m, self.n_x))
             H[:, 0] = drho_ds
             pred = rho.copy()
             if self.clock_states:

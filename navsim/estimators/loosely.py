@@ -718,7 +718,7 @@ class LooselyCoupledEkf(NoiseScalable):
         if self.use_velocity:
             y_vel = st.velocity_n - m_en @ vel_e  # y = v_ins - v_fix = dv + v
             R_vel = self.sigma_vel**2 * (m_en @ cov_vel @ m_en.T)
-            H = np.zeros((6, N_STATES))
+            H: np.ndarray = np.zeros((6, N_STATES))
             H[:6, :6] = np.eye(6)
             if self._with_lever:
                 y_vel = y_vel + arm_vel_n

@@ -578,8 +578,8 @@ class AuxBlocksIns(ErrorStateIns):
         """Set up ``n_aux`` states with the given initial variances (before ``super().__init__``)."""
         self.n_aux = len(variances)
         self.n_states = N_STATES + self.n_aux
-        self.P_na = np.zeros((N_STATES, self.n_aux))
-        self.P_aa = np.diag(variances) if self.n_aux else np.zeros((0, 0))
+        self.P_na: np.ndarray = np.zeros((N_STATES, self.n_aux))
+        self.P_aa: np.ndarray = np.diag(variances) if self.n_aux else np.zeros((0, 0))
         self._fresh = True  # the next interval start carries no auxiliary propagation
 
     def _aux_transition(self, tau: float) -> tuple[np.ndarray, np.ndarray]:

@@ -78,7 +78,7 @@ class Outputs(GnssUpdate):
         return sol, 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
     def _extra_states(self, y: np.ndarray) -> dict[str, Any]:
-        out = {}
+        out: dict[str, Any] = {}
         if self._clock:
             out["clock_bias_m"] = float(y[self._i_clk])
             out["clock_drift_mps"] = float(y[self._i_clk + 1])
