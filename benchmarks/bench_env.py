@@ -113,14 +113,8 @@ def _vector_rate(venv, steps: int) -> tuple[float, float, float]:
     c0, t0, m0 = time.process_time(), time.perf_counter(), time.thread_time()
     for _ in range(steps):
         venv.step(action)
-    wall, main = time.perf_counter() - t0, time.thread_time() - m0
-    sums = _windows.setdefault(id(venv), [0.0, 0.0])
-    sums[0] += wall
-    sums[1] += main
-    return steps * n / (time.process_time() - c0), steps * n / wall, steps * n / main
-
-
-_windows: dict[int, list[float]] = {}  # per env: the timed windows' wall s and calling-thread CPU s
+    return (steps * n / (time.process_time() - c0), steps * n / (time.perf_counter() - t0),
+            steps * n / (time.thread_time() - m0))
 
 
 class _ThreadClock:
@@ -275,7 +269,6 @@ def main() -> None:
         _use_kernels(True)
         if threads == 2:
             clock = _ThreadClock(venv.unwrapped)  # installed after the warm-up: timed windows only
-            clock_env = venv
         envs[label] = (venv, steps)
         rates[label], cpu[label], main_cpu[label] = [], [], []
     floor_label = "floor: the draws alone, N = 1024 (reused buffers)"
@@ -330,7 +323,10 @@ def main() -> None:
               f"threads' wall time) per member-step: {efficiency:.2f} (goal 0.85); serial fraction 1/E - 1: "
               f"{1.0 / efficiency - 1.0:.2f}; CPU time per member-step, two threads / one: {one_cpu / two_cpu:.2f}; "
               f"the calling thread's share of the two threads' CPU time: {two_cpu / two_main:.2f}")
-        wall, main = _windows[id(clock_env)]
+        # the windows' wall and calling-thread CPU seconds in all, from their rates
+        member_steps = envs[two_label][1] * envs[two_label][0].num_envs
+        wall = sum(member_steps / r for r in rates[two_label])
+        main = sum(member_steps / r for r in main_cpu[two_label])
         waiting = (clock.load_wall - clock.load_cpu) / wall
         print(f"\nThe two threads in those windows ({wall:.2f} s of wall time in all): the chunk thread on CPU "
               f"{clock.chunk_cpu / wall:.0%} of the wall time (generating the next chunk, with the IMU groups it "
